@@ -101,3 +101,30 @@ def plot_reference(traj: "ReferenceTrajectory", out_dir: str | Path, dt: float =
         ax.legend(fontsize=7, loc="best")
         paths.append(_save(fig, out_dir / f"{prefix}_{name}.png"))
     return paths
+
+
+def plot_all(results_path: str | Path, out_dir: str | Path, traj: "ReferenceTrajectory | None" = None) -> list[Path]:
+    """Every figure of a run (thesis section 6.2 groups) from its results.npz; returns the PNG paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from humanoid_sim.results import load_results
+
+    out_dir = Path(out_dir)
+    r = load_results(results_path)
+    paths: list[Path] = []
+    if traj is not None:
+        paths += plot_reference(traj, out_dir)
+    t = r["t"]
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for i, ax in enumerate(axes):
+        ax.plot(t, r["hip_p"][:, i], label="actual")
+        ax.plot(t, r["hip_p_ref"][:, i], "--", label="reference")
+        ax.set_ylabel(f"P_c17 {'xyz'[i]} (m)")
+    axes[0].legend()
+    axes[-1].set_xlabel("t (s)")
+    fig.suptitle("Body-17 CoM against its reference (world frame)")
+    paths.append(_save(fig, out_dir / "task_hip.png"))
+    return paths

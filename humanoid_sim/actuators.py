@@ -1,0 +1,126 @@
+"""The thesis's actuator torques T (eq. 4.69) and their relation to Pinocchio's generalized forces.
+
+Thesis T components are Cartesian components of the moment M_{k,j} that the lower body k exerts on the
+higher-numbered real body j, about the joint point, resolved in frame j (chapter 2 L1008, eq. 4.69 with the
+K-2 fix).  The higher body is the lower trunk for the hips, the shank for the ankles, the thigh for the knees,
+the foot main body for the toes, and the upper trunk / arm / head above the waist / shoulders / neck.
+
+Power: M . (w_j - w_k) = sum_i (M . u_i) theta_dot_i, with u_i the world axis of thesis joint i of the group
+(Table 2.6); so the generalized force conjugate to theta_i is u_i . M and, since q = sign * theta,
+tau_pin_i = sign_i (u_i . R_j T_full), where T_full holds all three moment components.  For the revolute joints
+(toe, knee) and the spherical joints (ankle, hip, waist, neck) the actuated components are exactly what the
+joint space sees.  At the universal shoulder (T20/T21 = M_{20,23}^{(23)} x, y) the z component is a
+reaction that is not workless (errata P-8); T is therefore read off the transmitted moment itself (RNEA joint
+forces), and the saturation correction keeps that reaction component unchanged (exact when it does not bind).
+
+T-bar order (eq. 4.69): [T1 T3 T5 T7 T9 T11 T13 T15 | T2 T4 T6 T8 T10 T12 T14 T16 | T17 T18 T19 | T20 T21 T22 T23 |
+T24 T25 T26]; saturation limits by errata section 7 (inferred mapping of the Simulink blocks).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from humanoid_sim.model import HumanoidModel
+
+
+@dataclass(frozen=True)
+class ActuatorGroup:
+    """One joint's actuator: the thesis torques it produces and how to read the transmitted moment."""
+
+    name: str                 # actuator group in models/thesis_humanoid.yaml
+    T: tuple[str, ...]        # thesis torque names, in component order
+    comps: tuple[int, ...]    # moment components (0 = x, 1 = y, 2 = z of the higher body frame)
+    thetas: tuple[str, ...]   # thesis joint variables of the joint
+    higher: int               # higher-numbered real body j (frame of the components)
+    tree_joint: str           # pinocchio joint whose transmitted force carries M_{k,j}
+    higher_is_parent: bool    # in the pelvis-rooted tree, is body j on the parent side of tree_joint?
+
+
+GROUPS: tuple[ActuatorGroup, ...] = (
+    ActuatorGroup("right_toe", ("T1",), (1,), ("theta3",), 3, "theta3", True),
+    ActuatorGroup("right_ankle", ("T3", "T5", "T7"), (0, 1, 2), ("theta5", "theta7", "theta9"), 9, "theta9", True),
+    ActuatorGroup("right_knee", ("T9",), (1,), ("theta11",), 11, "theta11", True),
+    ActuatorGroup("right_hip", ("T11", "T13", "T15"), (0, 1, 2), ("theta13", "theta15", "theta17r"), 17,
+                  "theta17r", True),
+    ActuatorGroup("left_toe", ("T2",), (1,), ("theta4",), 4, "theta4", True),
+    ActuatorGroup("left_ankle", ("T4", "T6", "T8"), (0, 1, 2), ("theta6", "theta8", "theta10"), 10, "theta10", True),
+    ActuatorGroup("left_knee", ("T10",), (1,), ("theta12",), 12, "theta12", True),
+    ActuatorGroup("left_hip", ("T12", "T14", "T16"), (0, 1, 2), ("theta14", "theta16", "theta17l"), 17,
+                  "theta17l", True),
+    ActuatorGroup("waist", ("T17", "T18", "T19"), (0, 1, 2), ("theta18", "theta19", "theta20"), 20, "theta20", False),
+    ActuatorGroup("right_shoulder", ("T20", "T21"), (0, 1), ("theta21", "theta23"), 23, "theta23", False),
+    ActuatorGroup("left_shoulder", ("T22", "T23"), (0, 1), ("theta22", "theta24"), 24, "theta24", False),
+    ActuatorGroup("neck", ("T24", "T25", "T26"), (0, 1, 2), ("theta25", "theta26", "theta27"), 27, "theta27", False),
+)
+T_NAMES: tuple[str, ...] = tuple(t for g in GROUPS for t in g.T)  # eq. 4.69 T-bar order
+
+
+class Actuators:
+    """Maps between thesis actuator torques T (26,, T-bar order) and generalized forces tau (nv,)."""
+
+    def __init__(self, hm: HumanoidModel) -> None:
+        self.hm = hm
+        self.model = hm.model
+        self.data = hm.model.createData()
+        spec = hm.spec
+        self.limits = np.array([float(spec.actuators[g.name]["limit"]) for g in GROUPS for _ in g.T])
+        self._rows = []  # per group: (T rows, comps, higher frame id, [(v index, sign, joint id)], tree joint id)
+        row = 0
+        for g in GROUPS:
+            rows = list(range(row, row + len(g.T)))
+            row += len(g.T)
+            joints = []
+            for th in g.thetas:
+                i = hm.theta_index(th)
+                joints.append((int(hm.theta_v_idx[i]), float(hm.theta_sign[i]), hm.model.getJointId(th)))
+            self._rows.append((rows, g.comps, hm.frame_id(f"O_{g.higher}"), joints,
+                               hm.model.getJointId(g.tree_joint), g.higher_is_parent))
+
+    def torque_map(self, q: np.ndarray) -> np.ndarray:
+        """B (nv x 26) with tau = B T for a moment made only of the actuated components (reactions held):
+        tau_pin_i = sign_i u_i . R_j e_c for each component c of the group of joint i."""
+        pin.framesForwardKinematics(self.model, self.data, q)
+        B = np.zeros((self.model.nv, 26))
+        for rows, comps, fid, joints, _, _ in self._rows:
+            Rj = self.data.oMf[fid].rotation
+            for vi, sign, jid in joints:
+                axis = self.data.oMi[jid].rotation @ self._axis(jid)
+                for r, c in zip(rows, comps):
+                    B[vi, r] = sign * axis @ Rj[:, c]
+        return B
+
+    def _axis(self, jid: int) -> np.ndarray:
+        short = self.model.joints[jid].shortname()  # JointModelRX / RY / RZ
+        return np.eye(3)["XYZ".index(short[-1])]
+
+    def thesis_torques(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """T (26,, T-bar order, N m) of the motion (q, v, a) driven by generalized torques ``tau`` (nv,).
+
+        Revolute and spherical joints: the actuated components are the whole joint-space torque, so
+        T_group = (U^T R_j[:, comps])^-1 tau_group (U: the joint's world axes).  Shoulders: T20/T21 are read
+        off the moment transmitted to the arm (RNEA joint force of theta23/theta24; the arm is a leaf, so no
+        contact force enters it), about the shoulder point, in the arm frame (errata P-8).
+        """
+        B = self.torque_map(q)
+        pin.rnea(self.model, self.data, q, v, a)
+        T = np.zeros(26)
+        for rows, comps, fid, joints, tj, higher_is_parent in self._rows:
+            vi = [j[0] for j in joints]
+            if len(vi) == len(rows):
+                T[rows] = np.linalg.solve(B[np.ix_(vi, rows)], tau[vi])
+            else:
+                f = self.data.f[tj]  # force of the parent on the child subtree, joint frame, about the joint
+                n_world = self.data.oMi[tj].rotation @ f.angular
+                m = -n_world if higher_is_parent else n_world  # moment on the higher body from the lower one
+                local = self.data.oMf[fid].rotation.T @ m
+                T[rows] = local[list(comps)]
+        return T
+
+    def saturate(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Clip T to the saturation limits (errata section 7); returns (T_sat, mask of saturated rows)."""
+        Ts = np.clip(T, -self.limits, self.limits)
+        return Ts, Ts != T

@@ -1,0 +1,65 @@
+"""Fixed-step explicit Runge-Kutta integration of (q, v) on the configuration manifold.
+
+``ode3`` is Simulink's fixed-step ode3, the Bogacki-Shampine third-order pair used without its error
+estimate (thesis L3904).  Stages use pinocchio's ``integrate`` for the configuration (the free-flyer part lives
+on SE(3); never q + h v, design.md section 3): stage i evaluates the dynamics at
+q_i = q (+) h sum_j a_ij v_j, v_i = v + h sum_j a_ij a_j, and the step ends at q (+) h sum_i b_i v_i.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import pinocchio as pin
+
+
+@dataclass(frozen=True)
+class Tableau:
+    """Butcher tableau of an explicit method: stage times c, coefficients a (lower triangular), weights b."""
+
+    name: str
+    c: tuple[float, ...]
+    a: tuple[tuple[float, ...], ...]
+    b: tuple[float, ...]
+
+
+TABLEAUS = {
+    "euler": Tableau("euler", (0.0,), ((),), (1.0,)),
+    # Bogacki & Shampine (1989), the 3rd-order solution of the ode23 pair: Simulink ode3.
+    "ode3": Tableau("ode3", (0.0, 0.5, 0.75), ((), (0.5,), (0.0, 0.75)), (2 / 9, 1 / 3, 4 / 9)),
+    "rk4": Tableau("rk4", (0.0, 0.5, 0.5, 1.0), ((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)),
+                   (1 / 6, 1 / 3, 1 / 3, 1 / 6)),
+}
+
+Dynamics = Callable[[float, np.ndarray, np.ndarray, int], np.ndarray]
+"""f(t, q, v, stage) -> generalized acceleration (nv,)."""
+
+
+class RungeKutta:
+    """One fixed step of an explicit RK method on (q, v)."""
+
+    def __init__(self, model: pin.Model, method: str = "ode3") -> None:
+        if method not in TABLEAUS:
+            raise ValueError(f"integrator method: expected one of {sorted(TABLEAUS)}, got {method!r}")
+        self.model = model
+        self.tab = TABLEAUS[method]
+
+    def step(self, f: Dynamics, t: float, q: np.ndarray, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+        tab = self.tab
+        vs: list[np.ndarray] = []
+        accs: list[np.ndarray] = []
+        for i, ci in enumerate(tab.c):
+            if i == 0:
+                qi, vi = q, v
+            else:
+                dq = sum(aij * vj for aij, vj in zip(tab.a[i], vs) if aij != 0.0)
+                dv = sum(aij * aj for aij, aj in zip(tab.a[i], accs) if aij != 0.0)
+                qi = pin.integrate(self.model, q, h * dq)
+                vi = v + h * dv
+            vs.append(vi)
+            accs.append(f(t + ci * h, qi, vi, i))
+        q_new = pin.integrate(self.model, q, h * sum(bi * vi for bi, vi in zip(tab.b, vs)))
+        v_new = v + h * sum(bi * ai for bi, ai in zip(tab.b, accs))
+        return q_new, v_new

@@ -1,0 +1,299 @@
+"""The simulation loop of thesis chapter 6: phase selector, controller at every stage, fixed-step ode3,
+touchdown reset, logging.
+
+Per integration stage (the controller is a feedthrough function of the state, as in the Simulink model):
+references at t + dt (nominal schedule, clamped to the current phase, errata T-3) -> optimum command
+accelerations (thesis 5.1) -> computed torque under the phase's constraints (5.2) -> saturation of the
+thesis's actuator components (errata section 7) -> constrained forward dynamics -> accelerations.
+
+At each step boundary the phase selector (6.1.1) decides: SSP -> DSP on touchdown of the swing toe (then the
+velocity reset of 4.5 or an inelastic impact, the landing foot welded where it landed, the trajectory told
+the actual landing); DSP -> SSP on the hip-distance or overtime rule (no state change).
+
+Failure handling: a non-finite state, a singular constraint system, the hip CoM below the fall height or a
+single support phase lasting far beyond its nominal duration stop the run with a one-line reason; the log
+up to that point is kept.  KeyboardInterrupt stops the run the same way.
+
+Decisions where the thesis is silent:
+- P_i of the SSP switching rule is the actual swing toe point at the phase start (thesis 6.1.1.1 wording).
+- The double-support torque distribution (the thesis minimises the weighted 96-vector F with W_act, 1000 on
+  actuator torques, 1 on the rest) is taken here as the weighted minimum norm of [tau; lambda] with weight
+  1000 on joint torques and 1 on the contact wrenches: the contact-wrench part of F; the inter-body forces of F
+  have no floating-base counterpart.  The motion does not depend on this choice (the closed chain realizes the
+  commanded accelerations for every member of the family); the ground-reaction split between the feet does.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import pinocchio as pin
+
+from humanoid_sim.actuators import Actuators
+from humanoid_sim.command import CommandAccelerations, TaskReference
+from humanoid_sim.contact import ContactDynamics, ContactError, record_anchors
+from humanoid_sim.contact.wrenches import ground_reactions
+from humanoid_sim.impact import touchdown
+from humanoid_sim.integrator import RungeKutta
+from humanoid_sim.model import HumanoidModel
+from humanoid_sim.phases import FOOT_SPECS, Phase, SwitchThresholds, dsp_should_end, ssp_should_end
+from humanoid_sim.results import SimLog
+from humanoid_sim.scenario import Scenario
+from humanoid_sim.trajectory import ReferenceTrajectory
+
+BASIC = {Phase.LFFSSP: 0, Phase.RFFDSP: 1, Phase.RFFSSP: 2, Phase.LFFDSP: 3}
+FEET = (FOOT_SPECS["R"], FOOT_SPECS["L"])
+W_TAU_DSP = 1000.0  # W_act weight of actuator torques (Appendix B, errata A-3)
+W_LAMBDA_DSP = 1.0  # W_act weight of the other force components
+
+
+class SimulationError(RuntimeError):
+    """The run cannot continue; the message is the one-line reason."""
+
+
+@dataclass
+class PhaseRecord:
+    """One phase as it actually happened."""
+
+    index: int
+    name: str
+    t_start: float
+    t_end: float | None = None
+    nominal_start: float = 0.0
+    nominal_end: float = 0.0
+    touchdown_error_m: float | None = None  # |actual landing toe point - planned end toe point|, horizontal
+    landing_tilt_rad: float | None = None   # angle between the landed toe body's z-axis and the world z-axis
+
+
+@dataclass
+class SimResult:
+    """Outcome of a run: the log, the phase history, and how it ended."""
+
+    log: SimLog
+    phases: list[PhaseRecord]
+    phases_planned: int
+    completed: bool
+    reason: str
+    sim_time: float
+    wall_time: float
+    steps: int
+    stage_evaluations: int
+    extra: dict = field(default_factory=dict)
+
+
+def yaw_of(R: np.ndarray) -> float:
+    """Heading of the body x-axis in the world ground plane (rad, from world x)."""
+    return float(np.arctan2(R[1, 0], R[0, 0]))
+
+
+def _unwrap_to(angle: float, ref: float) -> float:
+    return ref + (angle - ref + np.pi) % (2 * np.pi) - np.pi
+
+
+class Simulator:
+    """Runs one scenario on the Pinocchio fast path."""
+
+    def __init__(self, hm: HumanoidModel, scenario: Scenario) -> None:
+        self.hm = hm
+        self.sc = scenario
+        self.model = hm.model
+        self.traj = ReferenceTrajectory(scenario.path)
+        self.cmd = CommandAccelerations(hm, scenario.controller)
+        self.dyn = ContactDynamics(hm.model)
+        self.act = Actuators(hm)
+        self.rk = RungeKutta(hm.model, scenario.simulation.method)
+        sw = scenario.switch
+        self.thresholds = SwitchThresholds(sw.toe_flat_height_m, sw.touchdown_tolerance_m,
+                                           sw.min_horizontal_progress_fraction, sw.dsp_hip_distance_m,
+                                           sw.dsp_overtime_fraction)
+        self.fid = {n: hm.frame_id(n) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2")}
+        self.data = hm.model.createData()
+        self.stage_evals = 0
+
+    # ------------------------------------------------------------------ one stage
+    def _references(self, k: int, t: float) -> tuple[TaskReference, TaskReference | None]:
+        info = self.traj.phases[k]
+        wa, wb = self.sc.controller.steps[info.name]
+        ra = self.traj.sample_global(t + wa.dt, k)
+        ref_a = TaskReference(ra.hip_p, np.concatenate([ra.hip_v, ra.hip_w]), ra.hip_R)
+        if info.swing_foot is None:
+            return ref_a, None
+        rb = self.traj.sample_global(t + wb.dt, k)
+        if info.swing_foot == "R":
+            return ref_a, TaskReference(rb.toe_R_p, np.concatenate([rb.toe_R_v, rb.foot_R_w]), rb.foot_R_R)
+        return ref_a, TaskReference(rb.toe_L_p, np.concatenate([rb.toe_L_v, rb.foot_L_w]), rb.foot_L_R)
+
+    def evaluate(self, k: int, phase: Phase, anchors, t: float, q: np.ndarray, v: np.ndarray) -> dict:
+        """Controller + computed torque + saturation + forward dynamics at one state."""
+        self.stage_evals += 1
+        name = phase.value
+        contacts = phase.contacts
+        ref_a, ref_b = self._references(k, t)
+        thdd_c = self.cmd.compute(name, q, v, ref_a, ref_b)
+        a_des = self.hm.v_from_theta_dot(thdd_c)
+        if phase.is_double_support:
+            w_tau = np.full(self.model.nv, W_TAU_DSP)
+            w_lam = np.full(contacts.n_rows, W_LAMBDA_DSP)
+            inv = self.dyn.inverse(contacts, anchors, q, v, a_des, w_tau, w_lam)
+        else:
+            inv = self.dyn.inverse(contacts, anchors, q, v, a_des)
+        T_cmd = self.act.thesis_torques(q, v, inv.a, inv.tau)
+        T_sat, sat = self.act.saturate(T_cmd)
+        tau = inv.tau
+        if sat.any():
+            B = self.act.torque_map(q)
+            tau = tau + B @ (T_sat - T_cmd)
+            tau[:6] = 0.0
+        fwd = self.dyn.forward(contacts, anchors, q, v, tau)
+        return {"a": fwd.a, "fwd": fwd, "thdd_c": thdd_c, "T_cmd": T_cmd, "T": T_sat, "sat": sat, "tau": tau}
+
+    # ------------------------------------------------------------------ the run
+    def run(self, t_end: float | None = None, progress: Callable[[float, int], None] | None = None) -> SimResult:
+        sc, hm, traj = self.sc, self.hm, self.traj
+        h = sc.simulation.step_s
+        n_phases = traj.n_phases
+        nominal_end = traj.phases[-1].t_end
+        t_stop = t_end if t_end is not None else (sc.simulation.t_end_s or np.inf)
+        q = hm.initial_q()
+        v = np.zeros(self.model.nv)
+        t = 0.0
+        k = 0
+        phase = Phase(traj.phases[0].name)
+        anchors = record_anchors(self.model, q, phase.contacts)
+        log = SimLog()
+        records = [PhaseRecord(0, phase.value, 0.0, nominal_start=traj.phases[0].t_start,
+                               nominal_end=traj.phases[0].t_end)]
+        toe_start = self._toe(q, traj.phases[0].swing_foot)
+        yaw_prev = {"hip": yaw_of(hm.spec.C0), "hip_ref": yaw_of(hm.spec.C0)}
+        stage0: dict = {}
+        completed, reason = False, ""
+        steps = 0
+        wall0 = time.perf_counter()
+
+        def f(ts: float, qs: np.ndarray, vs: np.ndarray, stage: int) -> np.ndarray:
+            out = self.evaluate(k, phase, anchors, ts, qs, vs)
+            if stage == 0:
+                stage0.clear()
+                stage0.update(out)
+            return out["a"]
+
+        try:
+            while True:
+                if t >= t_stop - 1e-12:
+                    reason = f"stopped at t = {t:.3f} s (requested stop time)"
+                    break
+                q_new, v_new = self.rk.step(f, t, q, v, h)
+                self._log(log, k, phase, t, q, v, stage0, anchors, yaw_prev)
+                q, v, t = q_new, v_new, t + h
+                steps += 1
+                if progress is not None:
+                    progress(t, k)
+                if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+                    raise SimulationError(f"non-finite state at t = {t:.3f} s in phase {k + 1} ({phase.value})")
+                pin.framesForwardKinematics(self.model, self.data, q)
+                hip = self.data.oMf[self.fid["Pc_17"]].translation
+                if hip[2] < sc.simulation.fall_height_m:
+                    raise SimulationError(f"fall: hip CoM height {hip[2]:.3f} m below "
+                                          f"{sc.simulation.fall_height_m} m at t = {t:.3f} s")
+                info = traj.phases[k]
+                elapsed = t - records[-1].t_start
+                if elapsed > sc.simulation.max_phase_overtime * info.duration:
+                    raise SimulationError(
+                        f"phase {k + 1} ({phase.value}) has lasted {elapsed:.2f} s, more than "
+                        f"{sc.simulation.max_phase_overtime:g} x its nominal {info.duration:.3f} s "
+                        f"(the swing foot never touched down)" if info.swing_foot else
+                        f"phase {k + 1} ({phase.value}) has lasted {elapsed:.2f} s")
+                targets = traj.phase_targets(k)
+                switch = False
+                if info.swing_foot is not None:
+                    toe = self.data.oMf[self.fid["P_tp" + info.swing_foot]].translation
+                    switch = ssp_should_end(toe, toe_start, targets.swing_toe_end, self.thresholds)
+                else:
+                    switch = dsp_should_end(hip, targets.hip_p_end, elapsed, info.duration, self.thresholds)
+                if not switch:
+                    continue
+                records[-1].t_end = t
+                if k + 1 >= n_phases:
+                    completed, reason = True, f"all {n_phases} phases completed at t = {t:.3f} s"
+                    break
+                if info.swing_foot is not None:
+                    foot = info.swing_foot
+                    toe = self.data.oMf[self.fid["P_tp" + foot]].translation.copy()
+                    R_toe = self.data.oMf[self.fid["O_1" if foot == "R" else "O_2"]].rotation.copy()
+                    records[-1].touchdown_error_m = float(np.hypot(*(toe[:2] - targets.swing_toe_end[:2])))
+                    records[-1].landing_tilt_rad = float(np.arccos(np.clip(R_toe[2, 2], -1.0, 1.0)))
+                    key = f"Wadj_qdot_{phase.value}_to_{phase.next.value}"
+                    res = touchdown(self.model, q, v, phase, sc.simulation.impact_law, w_adj=sc.W_adj.get(key))
+                    v = res.v_plus
+                    traj.set_landing(foot, k, toe, R_toe)
+                k += 1
+                phase = phase.next
+                anchors = record_anchors(self.model, q, phase.contacts, previous=anchors)
+                nxt = traj.phases[k]
+                records.append(PhaseRecord(k, phase.value, t, nominal_start=nxt.t_start, nominal_end=nxt.t_end))
+                toe_start = self._toe(q, nxt.swing_foot)
+        except (SimulationError, ContactError, np.linalg.LinAlgError) as exc:
+            reason = str(exc) if isinstance(exc, SimulationError) else \
+                f"{type(exc).__name__} at t = {t:.3f} s in phase {k + 1} ({phase.value}): {exc}"
+        except KeyboardInterrupt:
+            reason = f"interrupted by the user at t = {t:.3f} s"
+        if records and records[-1].t_end is None:
+            records[-1].t_end = t
+        return SimResult(log=log, phases=records, phases_planned=n_phases, completed=completed, reason=reason,
+                         sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps,
+                         stage_evaluations=self.stage_evals, extra={"nominal_end": nominal_end})
+
+    def _toe(self, q: np.ndarray, foot: str | None) -> np.ndarray | None:
+        if foot is None:
+            return None
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return self.data.oMf[self.fid["P_tp" + foot]].translation.copy()
+
+    # ------------------------------------------------------------------ logging
+    def _log(self, log: SimLog, k: int, phase: Phase, t: float, q, v, out: dict, anchors, yaw_prev: dict) -> None:
+        hm, d = self.hm, self.data
+        fwd = out["fwd"]
+        pin.forwardKinematics(self.model, d, q, v)
+        pin.updateFramePlacements(self.model, d)
+        LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        hip_M = d.oMf[self.fid["Pc_17"]]
+        R17 = d.oMf[self.fid["O_17"]].rotation
+        ref = self.traj.sample_global(t, k)
+        yaw = _unwrap_to(yaw_of(R17), yaw_prev["hip"])
+        yaw_ref = _unwrap_to(yaw_of(ref.hip_R), yaw_prev["hip_ref"])
+        yaw_prev["hip"], yaw_prev["hip_ref"] = yaw, yaw_ref
+        gr = ground_reactions(self.model, q, v, fwd.a, phase.contacts, fwd.lam, FEET)
+        bf = np.zeros((4, 3))
+        bm = np.zeros((4, 3))
+        for i, frame in enumerate(("O_1", "O_2", "O_3", "O_4")):
+            if frame in gr.bodies:
+                bf[i], bm[i] = gr.bodies[frame].force, gr.bodies[frame].moment
+        fw = np.zeros((2, 6))
+        cop = np.full((2, 3), np.nan)
+        contact = np.zeros(2, dtype=bool)
+        for i, foot in enumerate(("R", "L")):
+            if foot in gr.feet:
+                w = gr.feet[foot]
+                fw[i] = np.concatenate([w.force, w.moment])
+                cop[i] = w.cop
+                contact[i] = foot in phase.stance_feet
+        ftot = fw[:, :3].sum(axis=0)
+        mtot = fw[:, 3:].sum(axis=0)
+        zmp = np.full(3, np.nan)
+        if ftot[2] > 1e-9:
+            zmp = np.array([-mtot[1] / ftot[2], mtot[0] / ftot[2], 0.0])
+        log.append(
+            t=t, phase=k, basic_phase=BASIC[phase], q=q, v=v, theta=hm.theta_from_q(q), theta_dot=hm.theta_dot_from_v(v),
+            theta_ddot=hm.theta_dot_from_v(fwd.a), theta_ddot_cmd=out["thdd_c"], T_cmd=out["T_cmd"], T=out["T"],
+            saturated=out["sat"], tau=out["tau"], hip_p=hip_M.translation,
+            hip_p_ref=ref.hip_p, hip_v=pin.getFrameVelocity(self.model, d, self.fid["Pc_17"], LWA).linear,
+            hip_v_ref=ref.hip_v, hip_R=R17, hip_R_ref=ref.hip_R, hip_yaw=yaw, hip_yaw_ref=yaw_ref,
+            toe_R_p=d.oMf[self.fid["P_tpR"]].translation, toe_R_p_ref=ref.toe_R_p,
+            toe_L_p=d.oMf[self.fid["P_tpL"]].translation, toe_L_p_ref=ref.toe_L_p,
+            foot_R_R=d.oMf[self.fid["O_1"]].rotation, foot_L_R=d.oMf[self.fid["O_2"]].rotation,
+            body_force=bf, body_moment=bm, foot_wrench=fw, cop=cop, in_contact=contact, zmp=zmp,
+            drift_position=fwd.position_drift, drift_orientation=fwd.orientation_drift,
+            dynamics_residual=fwd.dynamics_residual)

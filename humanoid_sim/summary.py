@@ -1,0 +1,58 @@
+"""summary.json: the numbers a user reads first after a run (tracking, torques, contacts, speed)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from humanoid_sim.actuators import T_NAMES
+from humanoid_sim.simulate import SimResult
+
+
+def _f(x: Any) -> float | None:
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, Any]:
+    """Summary of a run (SI units: m, rad, N m, s)."""
+    a = result.log.arrays()
+    n = len(result.log)
+    out: dict[str, Any] = {
+        "scenario": scenario_name,
+        "engine": engine,
+        "completed": bool(result.completed),
+        "reason": result.reason,
+        "phases_planned": int(result.phases_planned),
+        "phases_completed": int(sum(1 for p in result.phases if p.t_end is not None and (
+            p is not result.phases[-1] or result.completed))),
+        "sim_time_s": _f(result.sim_time),
+        "wall_time_s": _f(result.wall_time),
+        "real_time_factor": _f(result.sim_time / result.wall_time) if result.wall_time > 0 else None,
+        "steps": int(result.steps),
+    }
+    if n:
+        e = np.linalg.norm(a["hip_p"] - a["hip_p_ref"], axis=1)
+        dyaw = a["hip_yaw"] - a["hip_yaw_ref"]
+        T = np.abs(a["T"])
+        out.update({
+            "hip_com_error_rms_m": _f(np.sqrt(np.mean(e ** 2))),
+            "hip_com_error_max_m": _f(e.max()),
+            "hip_yaw_error_rms_rad": _f(np.sqrt(np.mean(dyaw ** 2))),
+            "torque_peak_Nm": {name: _f(T[:, i].max()) for i, name in enumerate(T_NAMES)},
+            "torque_cmd_peak_Nm": {name: _f(np.abs(a["T_cmd"][:, i]).max()) for i, name in enumerate(T_NAMES)},
+            "saturated_fraction": _f(a["saturated"].any(axis=1).mean()),
+            "saturated_fraction_per_actuator": {name: _f(a["saturated"][:, i].mean())
+                                                for i, name in enumerate(T_NAMES)},
+            "constraint_drift_max_m": _f(a["drift_position"].max()),
+            "constraint_drift_max_rad": _f(a["drift_orientation"].max()),
+        })
+    td = [p.touchdown_error_m for p in result.phases if p.touchdown_error_m is not None]
+    out["toe_touchdown_error_max_m"] = _f(max(td)) if td else None
+    out["phase_log"] = [{"phase": p.index + 1, "name": p.name, "start": _f(p.t_start),
+                         "end": _f(p.t_end) if p.t_end is not None else None,
+                         "nominal_start": _f(p.nominal_start), "nominal_end": _f(p.nominal_end),
+                         "touchdown_error_m": p.touchdown_error_m, "landing_tilt_rad": p.landing_tilt_rad}
+                        for p in result.phases]
+    return out

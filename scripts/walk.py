@@ -1,0 +1,9 @@
+#!/usr/bin/env python
+"""Walk a scenario: ``python scripts/walk.py [SCENARIO] [options]`` (see ``--help``)."""
+
+import sys
+
+from humanoid_sim.cli import main
+
+if __name__ == "__main__":
+    sys.exit(main())
