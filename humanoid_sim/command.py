@@ -199,7 +199,7 @@ def _tracking_terms(qp: QPTerms, J6: np.ndarray, drift6: np.ndarray, p: np.ndarr
 
 
 def _joint_terms(qp: QPTerms, th: np.ndarray, thd: np.ndarray, W_q: np.ndarray, dt: float) -> None:
-    """Joint deviation from the basic position q0 = 0 (eqs. 5.4/5.15/5.53)."""
+    """Joint deviation from the basic position q0 (eqs. 5.4/5.15/5.53); ``th`` is already theta - q0."""
     h2 = 0.5 * dt * dt
     qp.add(np.eye(qp.n) * h2, -(th + thd * dt), W_q)
 
@@ -207,9 +207,12 @@ def _joint_terms(qp: QPTerms, th: np.ndarray, thd: np.ndarray, W_q: np.ndarray, 
 class CommandAccelerations:
     """Optimum command accelerations theta_ddot_c (26,, thesis order) for the current phase and state."""
 
-    def __init__(self, hm: HumanoidModel, params: ControllerParams) -> None:
+    def __init__(self, hm: HumanoidModel, params: ControllerParams, theta0: np.ndarray | None = None) -> None:
+        """``theta0``: the basic joint positions q0 of eqs. 5.4/5.15/5.53/5.90, "the initial values" (thesis
+        L3213); zero for the thesis's zero-posture start."""
         self.hm = hm
         self.params = params
+        self.theta0 = np.zeros(26) if theta0 is None else np.asarray(theta0, dtype=float).copy()
         self.kin = TaskKinematics(hm, TASK_FRAMES)
         self.last_qp: dict[str, QPTerms] = {}
 
@@ -234,7 +237,7 @@ class CommandAccelerations:
         lay = LAYOUTS[phase]
         wa, wb = self.params.steps[phase]
         self.kin.update(q, v)
-        th = self.hm.theta_from_q(q)
+        th = self.hm.theta_from_q(q) - self.theta0  # deviation from the basic positions q0
         thd = self.hm.theta_dot_from_v(v)
         qdd = np.zeros(26)
         if not lay.double:
@@ -258,7 +261,9 @@ class CommandAccelerations:
             e = np.zeros((1, len(xo)))
             e[0, k] = 1.0
             h3 = wb.dt3
-            qp2.add(e * 0.5 * h3 * h3, np.array([-(th[lay.other_toe] + thd[lay.other_toe] * h3)]),
+            # the toe penalty is on theta itself (eq. 5.16: Delta theta_4 = theta_4), not on theta - q0
+            th_toe = th[lay.other_toe] + self.theta0[lay.other_toe]
+            qp2.add(e * 0.5 * h3 * h3, np.array([-(th_toe + thd[lay.other_toe] * h3)]),
                     np.array([wb.W_p_toe]))
             qp2.add(e * h3, np.array([-thd[lay.other_toe]]), np.array([wb.W_v_toe]))
             qp2.add_reg(wb.W_qdd)
@@ -295,7 +300,7 @@ class CommandAccelerations:
         return qdd
 
     def upper(self, th: np.ndarray, thd: np.ndarray) -> np.ndarray:
-        """Eq. 5.90, per joint, with theta_k0 = theta_dot_k0 = 0 (errata C-6)."""
+        """Eq. 5.90, per joint; ``th`` = theta - theta_k0, theta_dot_k0 = 0 (errata C-6)."""
         Wp, Wv, dt = self.params.upper_Wp, self.params.upper_Wv, self.params.upper_dt
         num = Wp * th * dt**2 / 2 + Wp * thd * dt**3 / 2 + Wv * thd * dt
         den = Wp * dt**4 / 4 + Wv * dt**2

@@ -32,9 +32,11 @@ SIGNALS: dict[str, tuple[str, str]] = {
     "saturated": ("-", "true where the actuator torque hit its limit"),
     "tau": ("N m", "applied generalized torques (pinocchio v order)"),
     "hip_p": ("m", "Body-17 CoM position, world"),
-    "hip_p_ref": ("m", "Body-17 CoM reference position, world"),
+    "hip_p_ref": ("m", "Body-17 CoM reference position at time t on the nominal schedule (the planned motion)"),
+    "hip_p_ctrl_ref": ("m", "Body-17 CoM reference the controller used at time t: the current phase's reference, "
+                       "clamped to its nominal window (thesis 6.1.1, errata T-3)"),
     "hip_v": ("m/s", "Body-17 CoM velocity, world"),
-    "hip_v_ref": ("m/s", "Body-17 CoM reference velocity, world"),
+    "hip_v_ref": ("m/s", "Body-17 CoM reference velocity (planned motion at time t), world"),
     "hip_R": ("-", "Body-17 orientation C^(0,17)"),
     "hip_R_ref": ("-", "Body-17 reference orientation"),
     "hip_yaw": ("rad", "Body-17 yaw (x-axis heading from world x), unwrapped"),

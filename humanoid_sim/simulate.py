@@ -15,6 +15,12 @@ single support phase lasting far beyond its nominal duration stop the run with a
 up to that point is kept.  KeyboardInterrupt stops the run the same way.
 
 Decisions where the thesis is silent:
+- Logged references (``hip_p_ref``, ``toe_*_ref``, ``hip_yaw_ref``) are the planned motion at time t on the
+  nominal schedule, the reference the user designed and the viewer draws; tracking errors are measured against
+  it.  The controller tracks the current phase's reference clamped to the phase's nominal window (thesis 6.1.1,
+  errata T-3), logged as ``hip_p_ctrl_ref``.  The two differ while a phase runs ahead of or behind its nominal
+  window: with the thesis's 0.05 m double-support rule a DSP ends one or two steps after touchdown, so the next
+  SSP's reference is held at its start for up to t_DSP.
 - P_i of the SSP switching rule is the actual swing toe point at the phase start (thesis 6.1.1.1 wording).
 - The double-support torque distribution (the thesis minimises the weighted 96-vector F with W_act, 1000 on
   actuator torques, 1 on the rest) is taken here as the weighted minimum norm of [tau; lambda] with weight
@@ -37,6 +43,7 @@ from humanoid_sim.command import CommandAccelerations, TaskReference
 from humanoid_sim.contact import ContactDynamics, ContactError, record_anchors
 from humanoid_sim.contact.wrenches import ground_reactions
 from humanoid_sim.impact import touchdown
+from humanoid_sim.initial import initial_configuration
 from humanoid_sim.integrator import RungeKutta
 from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import FOOT_SPECS, Phase, SwitchThresholds, dsp_should_end, ssp_should_end
@@ -101,7 +108,8 @@ class Simulator:
         self.sc = scenario
         self.model = hm.model
         self.traj = ReferenceTrajectory(scenario.path)
-        self.cmd = CommandAccelerations(hm, scenario.controller)
+        self.q0 = initial_configuration(hm, scenario.path)
+        self.cmd = CommandAccelerations(hm, scenario.controller, theta0=hm.theta_from_q(self.q0))
         self.dyn = ContactDynamics(hm.model)
         self.act = Actuators(hm)
         self.rk = RungeKutta(hm.model, scenario.simulation.method)
@@ -157,7 +165,7 @@ class Simulator:
         n_phases = traj.n_phases
         nominal_end = traj.phases[-1].t_end
         t_stop = t_end if t_end is not None else (sc.simulation.t_end_s or np.inf)
-        q = hm.initial_q()
+        q = self.q0.copy()
         v = np.zeros(self.model.nv)
         t = 0.0
         k = 0
@@ -174,7 +182,13 @@ class Simulator:
         wall0 = time.perf_counter()
 
         def f(ts: float, qs: np.ndarray, vs: np.ndarray, stage: int) -> np.ndarray:
+            if not (np.all(np.isfinite(qs)) and np.all(np.isfinite(vs))):
+                raise SimulationError(f"non-finite state at t = {ts:.3f} s (integration stage {stage}) in phase "
+                                      f"{k + 1} ({phase.value}): the motion diverged")
             out = self.evaluate(k, phase, anchors, ts, qs, vs)
+            if not np.all(np.isfinite(out["a"])):
+                raise SimulationError(f"non-finite acceleration at t = {ts:.3f} s in phase {k + 1} "
+                                      f"({phase.value}): the motion diverged")
             if stage == 0:
                 stage0.clear()
                 stage0.update(out)
@@ -261,7 +275,8 @@ class Simulator:
         LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         hip_M = d.oMf[self.fid["Pc_17"]]
         R17 = d.oMf[self.fid["O_17"]].rotation
-        ref = self.traj.sample_global(t, k)
+        ref = self.traj.sample_global(t)          # the planned motion at time t
+        ref_ctrl = self.traj.sample_global(t, k)  # what the controller tracks: clamped to the current phase
         yaw = _unwrap_to(yaw_of(R17), yaw_prev["hip"])
         yaw_ref = _unwrap_to(yaw_of(ref.hip_R), yaw_prev["hip_ref"])
         yaw_prev["hip"], yaw_prev["hip_ref"] = yaw, yaw_ref
@@ -289,7 +304,7 @@ class Simulator:
             t=t, phase=k, basic_phase=BASIC[phase], q=q, v=v, theta=hm.theta_from_q(q), theta_dot=hm.theta_dot_from_v(v),
             theta_ddot=hm.theta_dot_from_v(fwd.a), theta_ddot_cmd=out["thdd_c"], T_cmd=out["T_cmd"], T=out["T"],
             saturated=out["sat"], tau=out["tau"], hip_p=hip_M.translation,
-            hip_p_ref=ref.hip_p, hip_v=pin.getFrameVelocity(self.model, d, self.fid["Pc_17"], LWA).linear,
+            hip_p_ref=ref.hip_p, hip_p_ctrl_ref=ref_ctrl.hip_p, hip_v=pin.getFrameVelocity(self.model, d, self.fid["Pc_17"], LWA).linear,
             hip_v_ref=ref.hip_v, hip_R=R17, hip_R_ref=ref.hip_R, hip_yaw=yaw, hip_yaw_ref=yaw_ref,
             toe_R_p=d.oMf[self.fid["P_tpR"]].translation, toe_R_p_ref=ref.toe_R_p,
             toe_L_p=d.oMf[self.fid["P_tpL"]].translation, toe_L_p_ref=ref.toe_L_p,

@@ -34,11 +34,14 @@ def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, A
     }
     if n:
         e = np.linalg.norm(a["hip_p"] - a["hip_p_ref"], axis=1)
+        ec = np.linalg.norm(a["hip_p"] - a["hip_p_ctrl_ref"], axis=1)
         dyaw = a["hip_yaw"] - a["hip_yaw_ref"]
         T = np.abs(a["T"])
         out.update({
             "hip_com_error_rms_m": _f(np.sqrt(np.mean(e ** 2))),
             "hip_com_error_max_m": _f(e.max()),
+            "hip_com_error_vs_controller_reference_rms_m": _f(np.sqrt(np.mean(ec ** 2))),
+            "hip_com_error_vs_controller_reference_max_m": _f(ec.max()),
             "hip_yaw_error_rms_rad": _f(np.sqrt(np.mean(dyaw ** 2))),
             "torque_peak_Nm": {name: _f(T[:, i].max()) for i, name in enumerate(T_NAMES)},
             "torque_cmd_peak_Nm": {name: _f(np.abs(a["T_cmd"][:, i]).max()) for i, name in enumerate(T_NAMES)},
