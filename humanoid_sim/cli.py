@@ -14,6 +14,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from humanoid_sim import PACKAGE_DIR
 
 DEFAULT_SCENARIO = PACKAGE_DIR.parent / "scripts" / "params" / "sim1.yaml"
@@ -55,7 +57,15 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out if args.out is not None else Path("results") / scenario.name
     if out.exists() and not out.is_dir():
         return _fail_input(f"--out: {out} exists and is not a folder")
+    try:
+        return _run(args, scenario, out)
+    except KeyboardInterrupt:  # outside the simulation loop (which keeps its partial log itself)
+        print("walk.py: interrupted; files already written are complete (atomic writes)", file=sys.stderr)
+        return 1
 
+
+def _run(args: argparse.Namespace, scenario, out: Path) -> int:
+    """Simulate a validated scenario and write its outputs into ``out``; the exit status."""
     from humanoid_sim.model import load_model
     from humanoid_sim.results import atomic_write_text
     from humanoid_sim.simulate import Simulator
@@ -86,13 +96,31 @@ def main(argv: list[str] | None = None) -> int:
                 state["last"] = now
             bar.set_postfix_str(f"phase {k + 1}/{sim.traj.n_phases} {sim.traj.phases[k].name}", refresh=False)
 
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return _fail_input(f"--out: cannot create {out}: {exc}")
     result = sim.run(t_end=args.until, progress=progress)
     if bar is not None:
         bar.close()
-    out.mkdir(parents=True, exist_ok=True)
-    result.log.save(out / "results.npz", [p.name for p in sim.traj.phases])
+    phase_names = [p.name for p in sim.traj.phases]
+    result.log.save(out / "results.npz", phase_names)
     summary = summarize(result, scenario.name, args.engine)
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")  # rewritten with the audit
+    report = None
+    try:  # contact-feasibility audit (humanoid_sim/audit.py): the "contact" section of summary.json
+        from humanoid_sim.audit import AuditError, audit_results
+
+        report = audit_results({**result.log.arrays(), "phase_names": np.array(phase_names)}, hm,
+                               scenario.contact.friction_coefficient)
+        summary["contact"] = report.summary()
+    except AuditError as exc:
+        summary["contact"] = {"error": str(exc)}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    if not args.no_plots and report is not None and len(result.log):
+        from humanoid_sim.plots_audit import plot_contact_audit
+
+        plot_contact_audit(report, out / "contact_audit.png", title=scenario.name)
     if not args.no_plots and len(result.log):
         from humanoid_sim.plots import plot_all
 
@@ -110,7 +138,10 @@ def main(argv: list[str] | None = None) -> int:
 
         play_live(out / "results.npz", hm=hm, traj=sim.traj)
     until_ok = args.until is not None and result.reason.startswith("stopped at")
-    return 0 if (result.completed or until_ok) else 1
+    if not (result.completed or until_ok):
+        print(f"walk.py: run failed: {result.reason}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def _print_summary(s: dict, out: Path) -> None:
@@ -127,6 +158,16 @@ def _print_summary(s: dict, out: Path) -> None:
         print(f"  touchdown error max {td * 1000:.1f} mm" if td is not None else "  no touchdown")
         print(f"  peak torque {peak[0]} {peak[1]:.1f} N m; saturated {100 * s['saturated_fraction']:.1f} % of "
               f"steps; weld drift max {s['constraint_drift_max_m']:.2e} m")
+    c = s.get("contact", {})
+    if "error" in c:
+        print(f"  contact audit failed: {c['error']}")
+    elif c.get("steps"):
+        pct = lambda x: "n/a" if x is None else f"{100 * x:.0f} %"  # noqa: E731
+        fmin = ", ".join(f"{k} {v:.0f} N" for k, v in c["min_normal_force_N"].items() if v is not None)
+        print(f"  contact feasibility (mu {c['friction_coefficient']:g}): min normal force {fmin}; CoP outside "
+              f"the sole R {pct(c['cop_outside_fraction']['R'])} / L {pct(c['cop_outside_fraction']['L'])}; "
+              f"friction exceeded R {pct(c['friction_exceeded_fraction']['R'])} / "
+              f"L {pct(c['friction_exceeded_fraction']['L'])}; ZMP outside {pct(c['zmp_outside_fraction'])}")
     print(f"  results in {out}/")
 
 

@@ -3,18 +3,29 @@
 A scenario has the sections ``path`` (locomotion parameters of thesis 3.1), ``controller`` (Appendix B weights
 and prediction times, names verbatim), ``reset`` (touchdown weights W_adj), ``simulation`` (integrator, step,
 stop time, impact law, fall height), ``phase_switch`` (section 6.1.1 thresholds) and ``contact`` (friction
-coefficient for the feasibility audit).  Files are read with a safe YAML loader (no code execution).
+coefficient for the feasibility audit).  Files are read with a safe YAML loader (no code execution: a
+``!!python/...`` tag is an error) that also rejects duplicate keys.
 
-Every error is a :class:`ScenarioError` whose message names the file, the field path (``path.R[3]``), the value
-and what was expected; ``walk.py`` prints it and exits with status 2 before anything is written.
+Validation happens in two layers.  This module checks the *form* of every field: the key exists and is spelled
+right (an unknown key gets the closest valid name suggested, at every level), its type (a number, not a string
+or a boolean), its length (``Vhip`` has 2n-1 entries for n waypoints, the per-segment fields n-1, the controller
+vectors the sizes of Appendix B / Table A.1) and its unit range, element by element.  The cross-field geometry
+(constant hip height, arcs that exist, step width below the radius, rotation matrices) is then checked by
+:meth:`humanoid_sim.trajectory.PathParams.from_dict`, and the controller is assembled by
+:meth:`humanoid_sim.command.ControllerParams.from_dict`.
+
+Every error is a :class:`ScenarioError` whose message names the file, the field path with its index
+(``path.R[3]``), the value and what was expected; ``walk.py`` prints it and exits with status 2 before anything
+is written.
 """
 
 from __future__ import annotations
 
 import difflib
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 import yaml
@@ -27,6 +38,7 @@ REQUIRED = ("path", "controller", "reset")
 RESET_KEYS = ("Wadj_qdot_LFFSSP_to_RFFDSP", "Wadj_qdot_RFFSSP_to_LFFDSP")
 METHODS = ("ode3", "rk4", "euler")
 IMPACT_LAWS = ("thesis", "inelastic")
+FIRST_PHASES = ("LFFSSP", "RFFSSP")
 
 
 class ScenarioError(ValueError):
@@ -42,7 +54,7 @@ class SimulationSettings:
     t_end_s: float | None = None  # default: the nominal schedule's end plus the allowed DSP overtime
     impact_law: str = "thesis"    # touchdown velocity reset: eqs. 4.97/4.100, or "inelastic" (impulse dynamics)
     fall_height_m: float = 0.5    # the run stops when the Body-17 CoM drops below this height
-    max_phase_overtime: float = 3.0  # an SSP lasting this many times its nominal duration is a failure
+    max_phase_overtime: float = 3.0  # a phase lasting this many times its nominal duration is a failure
 
 
 @dataclass(frozen=True)
@@ -60,7 +72,7 @@ class SwitchThresholds:
 class ContactSettings:
     """Contact-feasibility audit settings."""
 
-    friction_coefficient: float = 0.8
+    friction_coefficient: float = 0.8  # Coulomb coefficient mu of the cone |f_t| <= mu f_n (assumed, not in thesis)
 
 
 @dataclass(frozen=True)
@@ -78,37 +90,236 @@ class Scenario:
     source: str = "<dict>"
 
 
-def _suggest(key: str, allowed: tuple[str, ...] | list[str]) -> str:
+# --------------------------------------------------------------------------------------------- value ranges
+@dataclass(frozen=True)
+class Num:
+    """Expected number: ``what`` (with unit) in the interval from ``lo`` to ``hi`` (open ends where asked);
+    ``choices`` restricts it to a finite set."""
+
+    what: str
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple[float, ...] | None = None
+
+    def describe(self) -> str:
+        if self.choices is not None:
+            return f"{self.what}, one of {', '.join(f'{c:g}' for c in self.choices)}"
+        if self.lo == -math.inf and self.hi == math.inf:
+            return f"{self.what} (finite)"
+        if self.hi == math.inf:
+            return f"{self.what} {'>' if self.lo_open else '>='} {self.lo:g}"
+        if self.lo == -math.inf:
+            return f"{self.what} {'<' if self.hi_open else '<='} {self.hi:g}"
+        return (f"{self.what} in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}"
+                f"{')' if self.hi_open else ']'}")
+
+    def accepts(self, v: float) -> bool:
+        if self.choices is not None:
+            return v in self.choices
+        lo_ok = v > self.lo if self.lo_open else v >= self.lo
+        hi_ok = v < self.hi if self.hi_open else v <= self.hi
+        return lo_ok and hi_ok
+
+
+#: per-segment fields of ``path`` (one entry per segment P_k -> P_k+1) and their unit ranges
+PATH_SEGMENT: dict[str, Num] = {
+    "R": Num("an arc radius in m", 0.0, lo_open=True),
+    "T_dir": Num("a turn direction", choices=(1.0, -1.0)),
+    "t_SSP": Num("a single-support duration in s", 0.0, 10.0, lo_open=True),
+    "PTR": Num("a ratio t_SSP/t_DSP", 0.0, 100.0, lo_open=True),
+    "SW": Num("a step width in m", 0.0, 1.0, lo_open=True),
+    "SH": Num("a swing-toe height in m (above the flat-toe height 0.015 m)", 0.015, 0.5, lo_open=True),
+    "k_SH": Num("a fraction of t_SSP", 0.0, 1.0, lo_open=True, hi_open=True),
+    "k_Adj": Num("a ratio t_SSP/t_z", 1.0, 100.0),
+    "dtheta_PLN": Num("an angle in rad", -math.pi, math.pi),
+    "dtheta_ADJ": Num("an angle in rad", -math.pi, math.pi),
+}
+PATH_KEYS = ("Phip", "Vhip", *PATH_SEGMENT, "toe_R0", "toe_L0", "foot_R0", "foot_L0", "first_phase")
+HIP_HEIGHT = Num("a hip height in m", 0.0, 2.0, lo_open=True)
+COORD = Num("a coordinate in m", -1e4, 1e4)
+SPEED = Num("a speed magnitude in m/s", 0.0, 5.0)
+TOE_HEIGHT = Num("a toe height in m", 0.0, 0.5)
+ROT_ENTRY = Num("a rotation-matrix entry", -1.0 - 1e-6, 1.0 + 1e-6)   # 1e-6: entries typed with ~7 digits
+TIME = Num("a prediction time in s", 0.0, 5.0, lo_open=True)
+WEIGHT = Num("a weight", 0.0)
+RESET_WEIGHT = Num("a weight", 0.0, lo_open=True)
+
+
+def _controller_schema() -> dict[str, tuple[int, Num, bool]]:
+    """Controller key -> (size, range, required).  Sizes of Appendix B / Table A.1; Wact has len(F) = 96
+    entries (eq. 4.68).  Wact_* and Delta_t2_*DSP are accepted but optional: the fast path does not read them
+    (errata A-3, A-13)."""
+    s: dict[str, tuple[int, Num, bool]] = {}
+    for p in ("LFFSSP", "RFFSSP"):
+        for j in (1, 2, 3):
+            s[f"Delta_t{j}_{p}"] = (1, TIME, True)
+    for p in ("LFFDSP", "RFFDSP"):
+        s[f"Delta_t1_{p}"] = (1, TIME, True)
+        s[f"Delta_t2_{p}"] = (1, TIME, False)
+    sizes = {"Wp_fa": 3, "Wv_fa": 6, "Wa_a": 7, "Wp_fb": 3, "Wv_fb": 6, "Wa_b": 8, "Wor_fa": 3, "Wor_fb": 3}
+    for w, n in sizes.items():
+        for p in ("LFFSSP", "RFFSSP", "LFFDSP", "RFFDSP"):
+            s[f"{w}_{p}"] = (n, WEIGHT, True)
+    for k in ("Wp_Tetha3_LFFSSP", "Wv_Tetha3_LFFSSP", "Wp_Tetha4_RFFSSP", "Wv_Tetha4_RFFSSP"):
+        s[k] = (1, WEIGHT, True)
+    for k in ("Wact_LFFDSP", "Wact_RFFDSP"):
+        s[k] = (96, WEIGHT, False)
+    for k, n in (("WqL_H_LFFSSP", 7), ("WqH_R_LFFSSP", 8), ("WqR_H_RFFSSP", 7), ("WqH_L_RFFSSP", 8),
+                 ("WqL_H_LFFDSP", 7), ("WqR_H_LFFDSP", 8), ("WqR_H_RFFDSP", 7), ("WqL_H_RFFDSP", 8)):
+        s[k] = (n, WEIGHT, True)
+    for j in range(18, 28):
+        s[f"WpTetha{j}"] = (1, WEIGHT, True)
+        s[f"WvTetha{j}"] = (1, WEIGHT, True)
+        s[f"Delta_t{j}"] = (1, TIME, True)
+    return s
+
+
+CONTROLLER_SCHEMA = _controller_schema()
+
+
+# --------------------------------------------------------------------------------------------- helpers
+def _suggest(key: str, allowed: Sequence[str]) -> str:
     close = difflib.get_close_matches(key, list(allowed), n=1, cutoff=0.5)
-    return f"; did you mean {close[0]!r}?" if close else f"; allowed: {', '.join(allowed)}"
+    if close:
+        return f"; did you mean {close[0]!r}?"
+    listed = ", ".join(list(allowed)[:12]) + (", ..." if len(allowed) > 12 else "")
+    return f"; allowed: {listed}"
 
 
 def _mapping(src: str, where: str, value: Any) -> dict:
     if not isinstance(value, dict):
         raise ScenarioError(f"{src}: {where}: expected a mapping of keys to values, got {type(value).__name__} "
-                            f"({value!r})")
+                            f"({_show(value)})")
     return value
 
 
-def _check_keys(src: str, where: str, d: dict, allowed: tuple[str, ...] | list[str]) -> None:
+def _check_keys(src: str, where: str, d: dict, allowed: Sequence[str]) -> None:
     for k in d:
-        if k not in allowed:
+        if not isinstance(k, str) or k not in allowed:
             raise ScenarioError(f"{src}: {where + '.' if where else ''}{k}: unknown key{_suggest(str(k), allowed)}")
 
 
-def _number(src: str, where: str, value: Any, lo: float | None = None, hi: float | None = None,
-            lo_open: bool = False, what: str = "a number") -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise ScenarioError(f"{src}: {where}: expected {what}, got {value!r}")
+def _show(value: Any, limit: int = 80) -> str:
+    """repr of a value, shortened for messages."""
+    r = repr(value)
+    return r if len(r) <= limit else r[:limit - 3] + "..."
+
+
+def _type_hint(value: Any) -> str:
+    if isinstance(value, bool):
+        return " (a boolean)"
+    if isinstance(value, str):
+        try:
+            float(value)
+        except ValueError:
+            return " (a string)"
+        if "e" in value.lower():
+            return " (a string: YAML 1.1 reads an exponent without a dot and a sign as text; write e.g. 1.0e+3)"
+        return " (a string: write the number without quotes)"
+    if value is None:
+        return " (empty)"
+    name = type(value).__name__
+    return f" ({'an' if name[0] in 'aeiou' else 'a'} {name})"
+
+
+def _number(src: str, where: str, value: Any, rng: Num) -> float:
+    """A finite real number in ``rng``; booleans and numeric strings are rejected."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ScenarioError(f"{src}: {where}: expected {rng.describe()}, got {_show(value)}{_type_hint(value)}")
     v = float(value)
-    if lo is not None and (v < lo or (lo_open and v == lo)):
-        raise ScenarioError(f"{src}: {where}: expected {what} {'>' if lo_open else '>='} {lo}, got {value!r}")
-    if hi is not None and v > hi:
-        raise ScenarioError(f"{src}: {where}: expected {what} <= {hi}, got {value!r}")
+    if not math.isfinite(v) or not rng.accepts(v):
+        raise ScenarioError(f"{src}: {where}: expected {rng.describe()}, got {_show(value)}")
     return v
 
 
-def _dataclass_section(src: str, name: str, raw: Any, cls, checks: dict[str, tuple]) -> Any:
+def _vector(src: str, where: str, value: Any, n: int, rng: Num, what: str) -> list[float]:
+    """A YAML list of exactly ``n`` numbers in ``rng``."""
+    if not isinstance(value, list):
+        raise ScenarioError(f"{src}: {where}: expected a list of {n} {what}, got {_show(value)}{_type_hint(value)}")
+    if len(value) != n:
+        raise ScenarioError(f"{src}: {where}: expected {n} entries ({what}), got {len(value)}: {_show(value)}")
+    return [_number(src, f"{where}[{i}]", x, rng) for i, x in enumerate(value)]
+
+
+# --------------------------------------------------------------------------------------------- sections
+def _check_path(src: str, raw: Any) -> dict[str, Any]:
+    """Form of the ``path`` block: keys, types, lengths, element ranges.  Returns it unchanged."""
+    d = _mapping(src, "path", raw)
+    _check_keys(src, "path", d, PATH_KEYS)
+    for k in PATH_KEYS:
+        if k != "first_phase" and k not in d:
+            raise ScenarioError(f"{src}: path.{k}: missing (required keys: {', '.join(PATH_KEYS[:-1])})")
+    P = d["Phip"]
+    if not isinstance(P, list) or len(P) < 2:
+        raise ScenarioError(f"{src}: path.Phip: expected a list of n >= 2 waypoints [x, y, z] in m, got "
+                            f"{_show(P)}{'' if isinstance(P, list) else _type_hint(P)}")
+    for i, p in enumerate(P):
+        if not isinstance(p, list) or len(p) != 3:
+            raise ScenarioError(f"{src}: path.Phip[{i}]: expected a waypoint [x, y, z] in m, got {_show(p)}")
+        _number(src, f"path.Phip[{i}][0]", p[0], COORD)
+        _number(src, f"path.Phip[{i}][1]", p[1], COORD)
+        _number(src, f"path.Phip[{i}][2]", p[2], HIP_HEIGHT)
+    n = len(P)
+    V = d["Vhip"]
+    if isinstance(V, list) and len(V) != 2 * n - 1:
+        raise ScenarioError(f"{src}: path.Vhip: expected 2n-1 = {2 * n - 1} speeds for n = {n} waypoints "
+                            f"(V_1, V_12, V_2, ..., V_n), got {len(V)}")
+    _vector(src, "path.Vhip", V, 2 * n - 1, SPEED, "speeds in m/s")
+    for k, rng in PATH_SEGMENT.items():
+        v = d[k]
+        if isinstance(v, list) and len(v) != n - 1:
+            raise ScenarioError(f"{src}: path.{k}: expected n-1 = {n - 1} entries, one per segment for n = {n} "
+                                f"waypoints, got {len(v)}")
+        _vector(src, f"path.{k}", v, n - 1, rng, "one per segment")
+    for k in ("toe_R0", "toe_L0"):
+        v = _vector(src, f"path.{k}", d[k], 3, COORD, "a toe point [x, y, z] in m")
+        _number(src, f"path.{k}[2]", v[2], TOE_HEIGHT)
+    for k in ("foot_R0", "foot_L0"):
+        M = d[k]
+        if not isinstance(M, list) or len(M) != 3:
+            raise ScenarioError(f"{src}: path.{k}: expected a 3x3 rotation matrix (3 rows of 3), got {_show(M)}")
+        for i, row in enumerate(M):
+            _vector(src, f"path.{k}[{i}]", row, 3, ROT_ENTRY, "a rotation-matrix row")
+    if "first_phase" in d and d["first_phase"] not in FIRST_PHASES:
+        raise ScenarioError(f"{src}: path.first_phase: expected one of {', '.join(FIRST_PHASES)}, got "
+                            f"{_show(d['first_phase'])}")
+    return d
+
+
+def _check_controller(src: str, raw: Any) -> dict[str, Any]:
+    """Form of the ``controller`` block: keys, sizes, ranges.  Returns it unchanged."""
+    d = _mapping(src, "controller", raw)
+    _check_keys(src, "controller", d, tuple(CONTROLLER_SCHEMA))
+    for k, (n, rng, required) in CONTROLLER_SCHEMA.items():
+        if k not in d:
+            if required:
+                raise ScenarioError(f"{src}: controller.{k}: missing (expected "
+                                    f"{'1 value' if n == 1 else f'{n} values'}, {rng.describe()})")
+            continue
+        if n == 1:
+            _number(src, f"controller.{k}", d[k], rng)
+        else:
+            _vector(src, f"controller.{k}", d[k], n, rng, "weights")
+    return d
+
+
+def _check_reset(src: str, raw: Any) -> dict[str, np.ndarray]:
+    reset = _mapping(src, "reset", raw)
+    _check_keys(src, "reset", reset, RESET_KEYS)
+    W_adj = {}
+    for k in RESET_KEYS:
+        if k not in reset:
+            raise ScenarioError(f"{src}: reset.{k}: missing (expected 14 positive weights, eq. 4.97/4.100)")
+        W_adj[k] = np.array(_vector(src, f"reset.{k}", reset[k], 14, RESET_WEIGHT,
+                                    "weights of the lower-body joints without the toes, errata K-11"))
+    return W_adj
+
+
+def _dataclass_section(src: str, name: str, raw: Any, cls, checks: dict[str, Any]) -> Any:
+    """A flat section of scalars: each key is a :class:`Num`, a tuple of string choices, or
+    ``("optional", Num)`` (``null`` allowed)."""
     if raw is None:
         return cls()
     d = _mapping(src, name, raw)
@@ -116,19 +327,20 @@ def _dataclass_section(src: str, name: str, raw: Any, cls, checks: dict[str, tup
     kwargs = {}
     for k, v in d.items():
         spec = checks[k]
-        if spec[0] == "choice":
-            if v not in spec[1]:
-                raise ScenarioError(f"{src}: {name}.{k}: expected one of {', '.join(spec[1])}, got {v!r}")
+        if isinstance(spec, tuple) and spec and spec[0] == "optional":
+            kwargs[k] = None if v is None else _number(src, f"{name}.{k}", v, spec[1])
+        elif isinstance(spec, tuple):
+            if not isinstance(v, str) or v not in spec:
+                raise ScenarioError(f"{src}: {name}.{k}: expected one of {', '.join(spec)}, got {_show(v)}")
             kwargs[k] = v
-        elif spec[0] == "optional_number" and v is None:
-            kwargs[k] = None
         else:
-            kwargs[k] = _number(src, f"{name}.{k}", v, *spec[1:])
+            kwargs[k] = _number(src, f"{name}.{k}", v, spec)
     return cls(**kwargs)
 
 
+# --------------------------------------------------------------------------------------------- entry points
 def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
-    """Validate a parsed YAML document and build a :class:`Scenario`."""
+    """Validate a parsed YAML document and build a :class:`Scenario` (raises :class:`ScenarioError`)."""
     src = source
     if doc is None:
         raise ScenarioError(f"{src}: the file is empty; expected a mapping with sections {', '.join(REQUIRED)}")
@@ -138,51 +350,62 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
         if sec not in doc:
             raise ScenarioError(f"{src}: {sec}: missing section (required: {', '.join(REQUIRED)})")
     name = doc.get("name", Path(source).stem)
-    if not isinstance(name, str) or not name or any(c in name for c in "/\\\0"):
-        raise ScenarioError(f"{src}: name: expected a non-empty string usable as a folder name, got {name!r}")
+    if not isinstance(name, str) or not name.strip() or any(c in name for c in "/\\\0") or name in (".", ".."):
+        raise ScenarioError(f"{src}: name: expected a non-empty string usable as a folder name, got {_show(name)}")
     desc = doc.get("description", "")
     if not isinstance(desc, str):
-        raise ScenarioError(f"{src}: description: expected a string, got {desc!r}")
+        raise ScenarioError(f"{src}: description: expected a string, got {_show(desc)}")
+    path_raw = _check_path(src, doc["path"])
     try:
-        path = PathParams.from_dict(_mapping(src, "path", doc["path"]), where="path")
+        path = PathParams.from_dict(path_raw, where="path")
     except PathParamError as exc:
         raise ScenarioError(f"{src}: {exc}") from None
+    ctrl_raw = _check_controller(src, doc["controller"])
     try:
-        controller = ControllerParams.from_dict(_mapping(src, "controller", doc["controller"]), where="controller")
+        controller = ControllerParams.from_dict(ctrl_raw, where="controller")
     except (ControllerParamError, TypeError, ValueError) as exc:
         raise ScenarioError(f"{src}: {exc}") from None
-    reset = _mapping(src, "reset", doc["reset"])
-    _check_keys(src, "reset", reset, RESET_KEYS)
-    W_adj = {}
-    for k in RESET_KEYS:
-        if k not in reset:
-            raise ScenarioError(f"{src}: reset.{k}: missing (expected 14 non-negative weights, eq. 4.97/4.100)")
-        val = reset[k]
-        if not isinstance(val, list) or len(val) != 14:
-            raise ScenarioError(f"{src}: reset.{k}: expected a list of 14 weights (lower-body joints without the "
-                                f"toes, errata K-11), got {val!r}")
-        arr = np.array([_number(src, f"reset.{k}[{i}]", x, 0.0, lo_open=True, what="a positive weight")
-                        for i, x in enumerate(val)])
-        W_adj[k] = arr
+    W_adj = _check_reset(src, doc["reset"])
     sim = _dataclass_section(src, "simulation", doc.get("simulation"), SimulationSettings, {
-        "method": ("choice", METHODS), "step_s": ("number", 1e-5, 0.05, True, "a step in s"),
-        "t_end_s": ("optional_number", 0.0, 1e4, True, "a stop time in s"),
-        "impact_law": ("choice", IMPACT_LAWS), "fall_height_m": ("number", 0.0, 2.0, False, "a height in m"),
-        "max_phase_overtime": ("number", 1.0, 100.0, True, "a ratio")})
+        "method": METHODS, "step_s": Num("a step in s", 1e-5, 0.05),
+        "t_end_s": ("optional", Num("a stop time in s", 0.0, 1e4, lo_open=True)),
+        "impact_law": IMPACT_LAWS, "fall_height_m": Num("a height in m", 0.0, 2.0),
+        "max_phase_overtime": Num("a ratio to the nominal phase duration", 1.0, 100.0, lo_open=True)})
     sw = _dataclass_section(src, "phase_switch", doc.get("phase_switch"), SwitchThresholds, {
-        "toe_flat_height_m": ("number", 0.0, 0.1, False, "a height in m"),
-        "touchdown_tolerance_m": ("number", 0.0, 0.05, True, "a tolerance in m"),
-        "min_horizontal_progress_fraction": ("number", 0.0, 1.0, False, "a fraction"),
-        "dsp_hip_distance_m": ("number", 0.0, 1.0, True, "a distance in m"),
-        "dsp_overtime_fraction": ("number", 0.0, 10.0, False, "a fraction")})
+        "toe_flat_height_m": Num("a height in m", 0.0, 0.1),
+        "touchdown_tolerance_m": Num("a tolerance in m", 0.0, 0.05, lo_open=True),
+        "min_horizontal_progress_fraction": Num("a fraction", 0.0, 1.0),
+        "dsp_hip_distance_m": Num("a distance in m", 0.0, 1.0, lo_open=True),
+        "dsp_overtime_fraction": Num("a fraction", 0.0, 10.0)})
     ct = _dataclass_section(src, "contact", doc.get("contact"), ContactSettings, {
-        "friction_coefficient": ("number", 0.0, 5.0, True, "a friction coefficient")})
+        "friction_coefficient": Num("a friction coefficient", 0.0, 5.0, lo_open=True)})
     return Scenario(name=name, description=desc, path=path, controller=controller, W_adj=W_adj, simulation=sim,
                     switch=sw, contact=ct, source=source)
 
 
+class _StrictSafeLoader(yaml.SafeLoader):
+    """PyYAML's safe loader (plain data only, no object construction) that also rejects duplicate keys."""
+
+
+def _construct_mapping(loader: _StrictSafeLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+    seen: set = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        try:
+            dup = key in seen
+        except TypeError:  # unhashable key: let the base constructor report it
+            break
+        if dup:
+            raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
+        seen.add(key)
+    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+
+_StrictSafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file."""
+    """Read and validate a scenario file (raises :class:`ScenarioError`)."""
     p = Path(path)
     if not p.exists():
         raise ScenarioError(f"{p}: no such scenario file")
@@ -191,11 +414,14 @@ def load_scenario(path: str | Path) -> Scenario:
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{p}: cannot read: {exc}") from None
+        raise ScenarioError(f"{p}: cannot read as UTF-8 text: {exc}") from None
     try:
-        doc = yaml.safe_load(text)
+        doc = yaml.load(text, Loader=_StrictSafeLoader)  # noqa: S506 (a SafeLoader subclass)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ScenarioError(f"{p}: not valid YAML{where}: {getattr(exc, 'problem', exc)}") from None
+        problem = getattr(exc, "problem", None) or str(exc)
+        if isinstance(exc, yaml.constructor.ConstructorError) and "constructor for the tag" in problem:
+            problem += " (only plain YAML data is accepted; tags that construct objects are refused)"
+        raise ScenarioError(f"{p}: not valid YAML{where}: {problem}") from None
     return parse_scenario(doc, str(p))

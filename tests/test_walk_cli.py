@@ -1,0 +1,255 @@
+"""walk.py end to end: bad input (exit 2, one message, nothing written), failing runs (exit 1, partial results
+kept), Ctrl-C (exit 1, partial results kept), and the contact audit of a short Simulation-1 run in
+summary.json and contact_audit.png.
+
+Subprocess runs cost ~1 s of imports each; they are kept to a representative handful, the rest of the
+validation is tested through parse_scenario in tests/test_scenario.py.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+
+from humanoid_sim.cli import main
+from humanoid_sim.results import load_results
+
+ROOT = Path(__file__).resolve().parents[1]
+WALK = ROOT / "scripts" / "walk.py"
+SIM1 = ROOT / "scripts" / "params" / "sim1.yaml"
+ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
+
+
+def walk(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(WALK), *args], capture_output=True, text=True, env=ENV,
+                          timeout=timeout, cwd=ROOT)
+
+
+def sim1_variant(tmp_path: Path, name: str, edit) -> Path:
+    doc = yaml.safe_load(SIM1.read_text())
+    doc = copy.deepcopy(doc)
+    edit(doc)
+    doc["name"] = name
+    p = tmp_path / f"{name}.yaml"
+    p.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return p
+
+
+def check_partial(out: Path, reason_start: str) -> tuple[dict, dict]:
+    """results.npz and summary.json exist, load, and say the run did not complete."""
+    summary = json.loads((out / "summary.json").read_text())
+    res = load_results(out / "results.npz")
+    assert summary["completed"] is False
+    assert summary["reason"].startswith(reason_start), summary["reason"]
+    assert summary["steps"] == len(res["t"])
+    assert not list(out.glob(".*.tmp"))  # atomic writes leave no temporaries
+    return summary, res
+
+
+# --------------------------------------------------------------------------------------------- bad input
+BAD_INPUT = [
+    ("not-yaml", "path: [1, 2\n", "not valid YAML at line"),
+    ("empty", "", "the file is empty"),
+    ("unknown-key", None, "controler: unknown key; did you mean 'controller'?"),
+    ("wrong-length", None, "path.Vhip: expected 2n-1 = 17 speeds for n = 9 waypoints"),
+    ("impossible-arc", None, "path.R[0]: arc cannot exist"),
+]
+
+
+def _bad_text(case: str, text: str | None) -> str:
+    if text is not None:
+        return text
+    doc = yaml.safe_load(SIM1.read_text())
+    if case == "unknown-key":
+        doc["controler"] = doc.pop("controller")
+    elif case == "wrong-length":
+        doc["path"]["Vhip"] = doc["path"]["Vhip"][:-1]
+    elif case == "impossible-arc":
+        doc["path"]["R"][0] = 0.05
+    return yaml.safe_dump(doc, sort_keys=False)
+
+
+@pytest.mark.parametrize("case, text, needle", BAD_INPUT, ids=[c[0] for c in BAD_INPUT])
+def test_bad_scenario_exits_2_and_writes_nothing(tmp_path, case, text, needle):
+    scen = tmp_path / f"{case}.yaml"
+    scen.write_text(_bad_text(case, text))
+    out = tmp_path / "out"
+    r = walk(str(scen), "--out", str(out), "--quiet")
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.startswith(f"walk.py: error: {scen}: ") and needle in r.stderr, r.stderr
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert r.stdout == ""
+    assert not out.exists()
+
+
+def test_missing_file_and_object_tag_exit_2_without_running_code(tmp_path):
+    out = tmp_path / "out"
+    r = walk(str(tmp_path / "nope.yaml"), "--out", str(out))
+    assert r.returncode == 2 and "no such scenario file" in r.stderr and "Traceback" not in r.stderr
+    marker = tmp_path / "pwned"
+    scen = tmp_path / "evil.yaml"
+    scen.write_text(f"name: !!python/object/apply:os.system ['touch {marker}']\n")
+    r = walk(str(scen), "--out", str(out))
+    assert r.returncode == 2, r.stderr
+    assert "tags that construct objects are refused" in r.stderr and "Traceback" not in r.stderr
+    assert not marker.exists() and not out.exists()
+
+
+def test_bad_until_exits_2():
+    assert main(["--until", "-1", "--out", "/nonexistent/never"]) == 2
+
+
+# --------------------------------------------------------------------------------------------- failing runs
+def test_unstable_scenario_exits_1_with_partial_results(tmp_path):
+    """Zero weights on every hip (Body-17) tracking term: only the joint-deviation terms hold the posture, and
+    the motion diverges at the first touchdown (hip CoM below the fall height within one step)."""
+    def no_hip_task(doc: dict) -> None:
+        for k, v in doc["controller"].items():
+            if k.startswith(("Wp_fa_", "Wv_fa_", "Wor_fa_")):
+                doc["controller"][k] = [0] * len(v)
+    scen = sim1_variant(tmp_path, "nohip", no_hip_task)
+    out = tmp_path / "out"
+    r = walk(str(scen), "--out", str(out), "--quiet", "--no-html", "--no-plots", "--until", "3")
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    assert "Traceback" not in r.stderr
+    summary, res = check_partial(out, "fall: hip CoM height")
+    assert "FAILED -- fall: hip CoM height" in r.stdout
+    assert len(res["t"]) > 10  # it walked a little before failing
+    # the log ends with the last step started before the failure: the reason's time is one step later
+    t_fail = float(summary["reason"].rsplit("at t = ", 1)[1].split(" s")[0])
+    assert t_fail == pytest.approx(res["t"][-1] + 0.01, abs=1e-3)  # 1e-3: the reason prints t with 3 decimals
+    assert summary["sim_time_s"] == pytest.approx(t_fail, abs=1e-3)
+    assert "contact" in summary and summary["contact"]["steps"] == len(res["t"])
+
+
+def test_phase_overtime_exits_1(tmp_path):
+    """A phase may last at most max_phase_overtime x its nominal duration; 1.01 is exceeded within the walk."""
+    scen = sim1_variant(tmp_path, "overtime",
+                        lambda d: d["simulation"].__setitem__("max_phase_overtime", 1.01))
+    out = tmp_path / "out"
+    assert main([str(scen), "--out", str(out), "--quiet", "--no-html", "--no-plots", "--until", "3"]) == 1
+    summary, res = check_partial(out, "phase ")
+    assert "more than 1.01 x its nominal" in summary["reason"]
+
+
+def test_singular_controller_exits_1_even_with_an_empty_log(tmp_path):
+    """All controller weights zero: the command-acceleration system is singular at the very first stage."""
+    def zero(doc: dict) -> None:
+        for k, v in doc["controller"].items():
+            if not k.startswith("Delta"):
+                doc["controller"][k] = [0] * len(v) if isinstance(v, list) else 0
+    scen = sim1_variant(tmp_path, "zero", zero)
+    out = tmp_path / "out"
+    assert main([str(scen), "--out", str(out), "--quiet", "--no-html"]) == 1
+    summary, res = check_partial(out, "LinAlgError at t = 0.000 s")
+    assert summary["steps"] == 0 and summary["contact"]["steps"] == 0
+    assert not (out / "contact_audit.png").exists()  # nothing to plot
+
+
+@pytest.mark.parametrize("fault, reason_start", [("nan", "non-finite"),
+                                                 ("singular", "SingularConstraintError at t = ")])
+def test_injected_runtime_faults_exit_1(tmp_path, monkeypatch, fault, reason_start):
+    """Fault injection into the controller/dynamics evaluation after 60 healthy evaluations: a NaN acceleration
+    (a diverging motion) or a rank-deficient constraint system.  The run stops with exit 1, the one-line
+    reason, and the steps before the fault on disk."""
+    from humanoid_sim import simulate
+    from humanoid_sim.contact import SingularConstraintError
+
+    original = simulate.Simulator.evaluate
+    calls = {"n": 0}
+
+    def evaluate(self, *args, **kwargs):
+        calls["n"] += 1
+        out = original(self, *args, **kwargs)
+        if calls["n"] > 60:
+            if fault == "singular":
+                raise SingularConstraintError("injected: constraint Jacobian rank 12 < 13 rows")
+            out = {**out, "a": np.full_like(out["a"], np.nan)}
+        return out
+
+    monkeypatch.setattr(simulate.Simulator, "evaluate", evaluate)
+    out = tmp_path / "out"
+    assert main([str(SIM1), "--out", str(out), "--quiet", "--no-html", "--no-plots", "--until", "1"]) == 1
+    summary, res = check_partial(out, reason_start)
+    assert "\n" not in summary["reason"]
+    assert 0 < len(res["t"]) < 60 and np.all(np.isfinite(res["q"]))  # the healthy steps, nothing after
+
+
+def test_sigint_keeps_partial_results(tmp_path):
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, str(WALK), str(SIM1), "--out", str(out), "--quiet", "--no-html",
+                             "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+                            cwd=ROOT)
+    try:
+        deadline = time.monotonic() + 60
+        while not out.exists():  # walk.py creates the folder just before the simulation starts
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "walk.py did not start simulating within 60 s"
+            time.sleep(0.02)
+        time.sleep(1.0)  # ~1-2 s of simulated time; the whole walk takes ~4 s wall or more
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1, (stdout, stderr)
+    assert "Traceback" not in stderr
+    summary, res = check_partial(out, "interrupted by the user at t = ")
+    assert 0 < len(res["t"]) and summary["phases_completed"] < summary["phases_planned"]
+    assert np.all(np.diff(res["t"]) > 0)
+
+
+# --------------------------------------------------------------------------------------------- the audit
+def test_short_sim1_run_reports_the_contact_audit(tmp_path, hm, monkeypatch):
+    import humanoid_sim.plots
+
+    # the other figure groups (humanoid_sim/plots.py, ~10 s) are not under test here: only contact_audit.png
+    monkeypatch.setattr(humanoid_sim.plots, "plot_all", lambda *a, **k: [])
+    out = tmp_path / "out"
+    assert main([str(SIM1), "--out", str(out), "--quiet", "--no-html", "--until", "0.9"]) == 0
+    png = out / "contact_audit.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    c = json.loads((out / "summary.json").read_text())["contact"]
+    r = load_results(out / "results.npz")
+    assert c["friction_coefficient"] == 0.8 and c["steps"] == len(r["t"])
+    # independent recomputation from the logged per-foot world wrenches
+    for i, foot in enumerate("RL"):
+        on = r["in_contact"][:, i]
+        assert c["contact_steps"][foot] == int(on.sum()) > 0
+        f = r["foot_wrench"][on, i, :3]
+        assert c["min_normal_force_N"][foot] == pytest.approx(f[:, 2].min(), rel=1e-12)  # same numbers
+        assert c["max_friction_ratio"][foot] == pytest.approx(np.max(np.hypot(f[:, 0], f[:, 1]) / f[:, 2]),
+                                                              rel=1e-12)
+        for key in ("cop_outside_fraction", "friction_exceeded_fraction", "pulling_fraction"):
+            assert 0.0 <= c[key][foot] <= 1.0
+    # per phase: LFFSSP (right foot in the air), then RFFDSP; the step counts add up
+    assert list(c["per_phase"])[:2] == ["LFFSSP", "RFFDSP"]
+    assert c["per_phase"]["LFFSSP"]["contact_steps"]["R"] == 0
+    assert sum(p["steps"] for p in c["per_phase"].values()) == len(r["t"])
+    # CoP outside the flat left sole during LFFSSP, recomputed another way: the logged CoP taken into the foot
+    # frame O_4 and compared with the rectangle of models/thesis_humanoid.yaml
+    sole = {k: v["value"] for k, v in yaml.safe_load((ROOT / "models" / "thesis_humanoid.yaml").read_text())
+            ["foot_sole"].items()}
+    data = hm.model.createData()
+    rows = np.flatnonzero(r["basic_phase"] == 0)
+    outside = 0
+    for k in rows:
+        pin.framesForwardKinematics(hm.model, data, r["q"][k])
+        M = data.oMf[hm.model.getFrameId("O_4")]
+        # the ground point seen along the foot's z axis: intersect the vertical through the CoP with the sole
+        # plane is not needed, the foot is flat to ~1e-5 rad (weld drift), so compare x, y in the foot frame
+        x, y, _ = M.actInv(r["cop"][k, 1])
+        outside += not (sole["heel_back_x"] <= x <= sole["toe_front_x"] and abs(y) <= sole["width"] / 2)
+    assert c["per_phase"]["LFFSSP"]["cop_outside_fraction"]["L"] == pytest.approx(outside / len(rows), abs=1e-12)
+    assert 0.0 <= c["zmp_outside_fraction"] <= 1.0
