@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from humanoid_sim.model import THETA_NAMES, HumanoidModel
 from humanoid_sim.taskspace import TaskKinematics, cdiag, cdiag_rate_matrix, cdiag_second_derivative_bias
@@ -51,6 +51,19 @@ TASK_FRAMES = ["Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2", "O_3", "O_4"]
 
 class ControllerParamError(ValueError):
     """A controller weight or prediction time is missing or malformed (message names the key and value)."""
+
+
+class CommandError(RuntimeError):
+    """The command-acceleration problem has no unique solution at this state (e.g. all weights zero)."""
+
+
+def _solve_spd(Z: np.ndarray, g: np.ndarray, what: str) -> np.ndarray:
+    """Solve Z x = g for the symmetric positive definite normal matrix of one cost (eqs. 5.11 / 5.23)."""
+    try:
+        return cho_solve(cho_factor(Z), g)
+    except (LinAlgError, ValueError) as exc:
+        raise CommandError(f"{what}: the cost's normal matrix is singular or not finite (weights that leave some "
+                           f"joint accelerations unpenalised, or a diverged state): {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -248,7 +261,7 @@ class CommandAccelerations:
             _tracking_terms(qp1, J, drift, p, v6, R, ref_a, wa, wa.dt)
             _joint_terms(qp1, th[xs], thd[xs], wa.W_q, wa.dt)
             qp1.add_reg(wa.W_qdd)
-            qdd[xs] = cho_solve(cho_factor(qp1.Z), qp1.g)  # eq. 5.11
+            qdd[xs] = _solve_spd(qp1.Z, qp1.g, f"{phase} step 1 (Body 17)")  # eq. 5.11
             # Step 2 (5.1.1.1.2): swing-leg joints for the swing toe point and toe body, given step 1.
             xo = lay.other_vars
             J, drift, Jfull, p, v6, R = self._body_task(lay.other_toe_point, lay.other_weld, lay.root_weld, xo)
@@ -267,7 +280,7 @@ class CommandAccelerations:
                     np.array([wb.W_p_toe]))
             qp2.add(e * h3, np.array([-thd[lay.other_toe]]), np.array([wb.W_v_toe]))
             qp2.add_reg(wb.W_qdd)
-            qdd[xo] = cho_solve(cho_factor(qp2.Z), qp2.g)  # eq. 5.23
+            qdd[xo] = _solve_spd(qp2.Z, qp2.g, f"{phase} step 2 (swing foot)")  # eq. 5.23
             self.last_qp = {"a": qp1, "b": qp2}
         else:
             # 5.1.1.3: both chains to Body 17 in one problem over x = [stance chain; trailing chain], subject to
@@ -292,7 +305,11 @@ class CommandAccelerations:
             A = Jc[:, x]
             b = -dc
             K = np.block([[qp.Z, A.T], [A, np.zeros((6, 6))]])
-            sol = np.linalg.solve(K, np.concatenate([qp.g, b]))
+            try:
+                sol = np.linalg.solve(K, np.concatenate([qp.g, b]))
+            except np.linalg.LinAlgError as exc:
+                raise CommandError(f"{phase}: the double-support KKT system is singular (weights that leave some "
+                                   f"joint accelerations unpenalised, or a diverged state): {exc}") from None
             qdd[x] = sol[:n]
             self.last_qp = {"dsp": qp, "A": A, "b": b}
         qdd[lay.stance_toe] = 0.0  # theta_3c / theta_4c = 0 (5.1.1.1, 5.1.1.3)

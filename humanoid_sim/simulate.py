@@ -39,7 +39,7 @@ import numpy as np
 import pinocchio as pin
 
 from humanoid_sim.actuators import Actuators
-from humanoid_sim.command import CommandAccelerations, TaskReference
+from humanoid_sim.command import CommandAccelerations, CommandError, TaskReference
 from humanoid_sim.contact import ContactDynamics, ContactError, record_anchors
 from humanoid_sim.contact.wrenches import ground_reactions
 from humanoid_sim.impact import touchdown
@@ -55,6 +55,7 @@ BASIC = {Phase.LFFSSP: 0, Phase.RFFDSP: 1, Phase.RFFSSP: 2, Phase.LFFDSP: 3}
 FEET = (FOOT_SPECS["R"], FOOT_SPECS["L"])
 W_TAU_DSP = 1000.0  # W_act weight of actuator torques (Appendix B, errata A-3)
 W_LAMBDA_DSP = 1.0  # W_act weight of the other force components
+DIVERGED_RATE = 100.0  # rad/s or m/s: no joint or base rate of a walking 55 kg humanoid comes near this
 
 
 class SimulationError(RuntimeError):
@@ -207,6 +208,10 @@ class Simulator:
                     progress(t, k)
                 if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
                     raise SimulationError(f"non-finite state at t = {t:.3f} s in phase {k + 1} ({phase.value})")
+                if np.max(np.abs(v)) > DIVERGED_RATE:
+                    i = int(np.argmax(np.abs(v)))
+                    raise SimulationError(f"diverged at t = {t:.3f} s in phase {k + 1} ({phase.value}): velocity "
+                                          f"component {i} is {v[i]:.3g} (limit {DIVERGED_RATE:g} rad/s or m/s)")
                 pin.framesForwardKinematics(self.model, self.data, q)
                 hip = self.data.oMf[self.fid["Pc_17"]].translation
                 if hip[2] < sc.simulation.fall_height_m:
@@ -249,7 +254,7 @@ class Simulator:
                 nxt = traj.phases[k]
                 records.append(PhaseRecord(k, phase.value, t, nominal_start=nxt.t_start, nominal_end=nxt.t_end))
                 toe_start = self._toe(q, nxt.swing_foot)
-        except (SimulationError, ContactError, np.linalg.LinAlgError) as exc:
+        except (SimulationError, ContactError, CommandError, np.linalg.LinAlgError) as exc:
             reason = str(exc) if isinstance(exc, SimulationError) else \
                 f"{type(exc).__name__} at t = {t:.3f} s in phase {k + 1} ({phase.value}): {exc}"
         except KeyboardInterrupt:

@@ -39,9 +39,18 @@ class PathParamError(ValueError):
     """
 
 
+def _plain(value: Any) -> Any:
+    """numpy scalars/arrays as plain Python numbers/lists, so messages read 0.93, not np.float64(0.93)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
+
+
 def _fail(where: str, name: str, msg: str, index: int | None = None, value: Any = None) -> PathParamError:
     idx = "" if index is None else f"[{index}]"
-    val = "" if value is None else f" (value: {value!r})"
+    val = "" if value is None else f" (value: {_plain(value)!r})"
     return PathParamError(f"{where}.{name}{idx}: {msg}{val}")
 
 
@@ -139,7 +148,7 @@ class PathParams:
         # thesis L1393: the hip CoM height is constant over the whole path.
         for i in range(1, n):
             if abs(P[i, 2] - P[0, 2]) > 1e-9:
-                raise _fail(where, "Phip", f"z must equal Phip[0][2] = {P[0, 2]!r} (constant hip height, "
+                raise _fail(where, "Phip", f"z must equal Phip[0][2] = {float(P[0, 2])!r} (constant hip height, "
                             "thesis L1393)", index=i, value=P[i].tolist())
         V = _as_float_array(where, "Vhip", self.Vhip, 1)
         if V.shape[0] != 2 * n - 1:
