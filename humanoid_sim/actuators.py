@@ -68,34 +68,53 @@ class Actuators:
         self.data = hm.model.createData()
         spec = hm.spec
         self.limits = np.array([float(spec.actuators[g.name]["limit"]) for g in GROUPS for _ in g.T])
-        self._rows = []  # per group: (T rows, comps, higher frame id, [(v index, sign, joint id)], tree joint id)
+        model = hm.model
+        # Per thesis joint (group order): pinocchio joint, its axis column, v index, sign, group, T rows.
+        jids, axes, vidx, signs = [], [], [], []
+        self._groups = []  # (T rows, comps, higher-body joint id, slice into the joint arrays, tree joint id,
+        #                    higher_is_parent)
         row = 0
         for g in GROUPS:
             rows = list(range(row, row + len(g.T)))
             row += len(g.T)
-            joints = []
+            start = len(jids)
             for th in g.thetas:
                 i = hm.theta_index(th)
-                joints.append((int(hm.theta_v_idx[i]), float(hm.theta_sign[i]), hm.model.getJointId(th)))
-            self._rows.append((rows, g.comps, hm.frame_id(f"O_{g.higher}"), joints,
-                               hm.model.getJointId(g.tree_joint), g.higher_is_parent))
+                jid = model.getJointId(th)
+                jids.append(jid)
+                axes.append("XYZ".index(model.joints[jid].shortname()[-1]))
+                vidx.append(int(hm.theta_v_idx[i]))
+                signs.append(float(hm.theta_sign[i]))
+            higher_jid = model.frames[hm.frame_id(f"O_{g.higher}")].parentJoint
+            self._groups.append((rows, list(g.comps), higher_jid, slice(start, len(jids)),
+                                 model.getJointId(g.tree_joint), g.higher_is_parent))
+        self._jids = jids
+        self._axes = np.array(axes)
+        self._vidx = np.array(vidx)
+        self._signs = np.array(signs)
+        self._higher_jids = [grp[2] for grp in self._groups]
 
-    def torque_map(self, q: np.ndarray) -> np.ndarray:
+    def _blocks(self, q: np.ndarray, data: pin.Data | None = None) -> list[np.ndarray]:
+        """Per group, the block B_g (n_joints x n_T) of the torque map; ``data`` may hold forward kinematics
+        at q already (then it is not recomputed)."""
+        if data is None:
+            data = self.data
+            pin.forwardKinematics(self.model, data, q)
+        axes = np.array([data.oMi[j].rotation[:, a] for j, a in zip(self._jids, self._axes)])  # (26, 3) world
+        axes *= self._signs[:, None]
+        blocks = []
+        for rows, comps, hj, sl, _, _ in self._groups:
+            Rh = data.oMi[hj].rotation  # the higher body's frame O_j is fixed to this joint with identity rotation
+            blocks.append(axes[sl] @ Rh[:, comps])
+        return blocks
+
+    def torque_map(self, q: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
         """B (nv x 26) with tau = B T for a moment made only of the actuated components (reactions held):
         tau_pin_i = sign_i u_i . R_j e_c for each component c of the group of joint i."""
-        pin.framesForwardKinematics(self.model, self.data, q)
         B = np.zeros((self.model.nv, 26))
-        for rows, comps, fid, joints, _, _ in self._rows:
-            Rj = self.data.oMf[fid].rotation
-            for vi, sign, jid in joints:
-                axis = self.data.oMi[jid].rotation @ self._axis(jid)
-                for r, c in zip(rows, comps):
-                    B[vi, r] = sign * axis @ Rj[:, c]
+        for (rows, _, _, sl, _, _), Bg in zip(self._groups, self._blocks(q, data)):
+            B[np.ix_(self._vidx[sl], rows)] = Bg
         return B
-
-    def _axis(self, jid: int) -> np.ndarray:
-        short = self.model.joints[jid].shortname()  # JointModelRX / RY / RZ
-        return np.eye(3)["XYZ".index(short[-1])]
 
     def thesis_torques(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """T (26,, T-bar order, N m) of the motion (q, v, a) driven by generalized torques ``tau`` (nv,).
@@ -105,19 +124,19 @@ class Actuators:
         off the moment transmitted to the arm (RNEA joint force of theta23/theta24; the arm is a leaf, so no
         contact force enters it), about the shoulder point, in the arm frame (errata P-8).
         """
-        B = self.torque_map(q)
-        pin.rnea(self.model, self.data, q, v, a)
+        data = self.data
+        pin.rnea(self.model, data, q, v, a)  # also leaves the forward kinematics of q in data
+        blocks = self._blocks(q, data)
         T = np.zeros(26)
-        for rows, comps, fid, joints, tj, higher_is_parent in self._rows:
-            vi = [j[0] for j in joints]
-            if len(vi) == len(rows):
-                T[rows] = np.linalg.solve(B[np.ix_(vi, rows)], tau[vi])
+        for (rows, comps, hj, sl, tj, higher_is_parent), Bg in zip(self._groups, blocks):
+            if Bg.shape[0] == Bg.shape[1]:
+                T[rows] = np.linalg.solve(Bg, tau[self._vidx[sl]]) if len(rows) > 1 else \
+                    tau[self._vidx[sl]] / Bg[0, 0]
             else:
-                f = self.data.f[tj]  # force of the parent on the child subtree, joint frame, about the joint
-                n_world = self.data.oMi[tj].rotation @ f.angular
+                f = data.f[tj]  # force of the parent on the child subtree, joint frame, about the joint
+                n_world = data.oMi[tj].rotation @ f.angular
                 m = -n_world if higher_is_parent else n_world  # moment on the higher body from the lower one
-                local = self.data.oMf[fid].rotation.T @ m
-                T[rows] = local[list(comps)]
+                T[rows] = (data.oMi[hj].rotation.T @ m)[comps]
         return T
 
     def saturate(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -57,10 +57,11 @@ class CommandError(RuntimeError):
     """The command-acceleration problem has no unique solution at this state (e.g. all weights zero)."""
 
 
-def _solve_spd(Z: np.ndarray, g: np.ndarray, what: str) -> np.ndarray:
-    """Solve Z x = g for the symmetric positive definite normal matrix of one cost (eqs. 5.11 / 5.23)."""
+def _solve_spd(qp: "QPTerms", what: str) -> np.ndarray:
+    """Solve the normal equations Z x = g of one cost (eqs. 5.11 / 5.23); Z is symmetric positive definite."""
+    Z, g = qp.normal()
     try:
-        return cho_solve(cho_factor(Z), g)
+        return cho_solve(cho_factor(Z, check_finite=False), g, check_finite=False)
     except (LinAlgError, ValueError) as exc:
         raise CommandError(f"{what}: the cost's normal matrix is singular or not finite (weights that leave some "
                            f"joint accelerations unpenalised, or a diverged state): {exc}") from None
@@ -167,32 +168,44 @@ class TaskReference:
     R: np.ndarray       # (3,3) orientation of the task body
 
 
-@dataclass
 class QPTerms:
-    """Accumulates 1/2 sum (r - A x)^T diag(w) (r - A x) + 1/2 x^T diag(w_dd) x over x in R^n."""
+    """Accumulates 1/2 sum (r - A x)^T diag(w) (r - A x) over x in R^n; blocks with A = s I (joint terms and the
+    acceleration penalty) are kept as diagonals.  :meth:`normal` stacks everything once: Z x = g."""
 
-    n: int
-    Z: np.ndarray = field(init=False)
-    g: np.ndarray = field(init=False)
-    terms: list = field(default_factory=list)
-
-    def __post_init__(self) -> None:
-        self.Z = np.zeros((self.n, self.n))
-        self.g = np.zeros(self.n)
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.diag_Z = np.zeros(n)
+        self.diag_g = np.zeros(n)
+        self.diag_terms: list[tuple[float, np.ndarray, np.ndarray]] = []
 
     def add(self, A: np.ndarray, r: np.ndarray, w: np.ndarray) -> None:
-        WA = A * w[:, None]
-        self.Z += A.T @ WA
-        self.g += WA.T @ r
-        self.terms.append((A, r, w))
+        self.blocks.append((A, r, w))
+
+    def add_scaled_identity(self, s: float, r: np.ndarray, w: np.ndarray) -> None:
+        """A block with A = s I (n x n)."""
+        self.diag_Z += w * s * s
+        self.diag_g += w * s * r
+        self.diag_terms.append((s, r, w))
 
     def add_reg(self, w_dd: np.ndarray) -> None:
-        self.Z[np.diag_indices(self.n)] += w_dd
-        self.terms.append((np.eye(self.n), np.zeros(self.n), w_dd))
+        """The acceleration penalty 1/2 x^T diag(w_dd) x."""
+        self.add_scaled_identity(1.0, np.zeros(self.n), w_dd)
+
+    def normal(self) -> tuple[np.ndarray, np.ndarray]:
+        """(Z, g) of the normal equations Z x = g."""
+        A = np.vstack([b[0] for b in self.blocks])
+        r = np.concatenate([b[1] for b in self.blocks])
+        w = np.concatenate([b[2] for b in self.blocks])
+        WA = A * w[:, None]
+        Z = A.T @ WA
+        Z[np.diag_indices(self.n)] += self.diag_Z
+        return Z, WA.T @ r + self.diag_g
 
     def cost(self, x: np.ndarray) -> float:
         """The cost function itself (for checks against direct minimisation)."""
-        return float(sum(0.5 * np.sum(w * (r - A @ x) ** 2) for A, r, w in self.terms))
+        c = sum(0.5 * np.sum(w * (r - A @ x) ** 2) for A, r, w in self.blocks)
+        return float(c + sum(0.5 * np.sum(w * (r - s * x) ** 2) for s, r, w in self.diag_terms))
 
 
 def _tracking_terms(qp: QPTerms, J6: np.ndarray, drift6: np.ndarray, p: np.ndarray, v6: np.ndarray, R: np.ndarray,
@@ -213,8 +226,7 @@ def _tracking_terms(qp: QPTerms, J6: np.ndarray, drift6: np.ndarray, p: np.ndarr
 
 def _joint_terms(qp: QPTerms, th: np.ndarray, thd: np.ndarray, W_q: np.ndarray, dt: float) -> None:
     """Joint deviation from the basic position q0 (eqs. 5.4/5.15/5.53); ``th`` is already theta - q0."""
-    h2 = 0.5 * dt * dt
-    qp.add(np.eye(qp.n) * h2, -(th + thd * dt), W_q)
+    qp.add_scaled_identity(0.5 * dt * dt, -(th + thd * dt), W_q)
 
 
 class CommandAccelerations:
@@ -261,7 +273,7 @@ class CommandAccelerations:
             _tracking_terms(qp1, J, drift, p, v6, R, ref_a, wa, wa.dt)
             _joint_terms(qp1, th[xs], thd[xs], wa.W_q, wa.dt)
             qp1.add_reg(wa.W_qdd)
-            qdd[xs] = _solve_spd(qp1.Z, qp1.g, f"{phase} step 1 (Body 17)")  # eq. 5.11
+            qdd[xs] = _solve_spd(qp1, f"{phase} step 1 (Body 17)")  # eq. 5.11
             # Step 2 (5.1.1.1.2): swing-leg joints for the swing toe point and toe body, given step 1.
             xo = lay.other_vars
             J, drift, Jfull, p, v6, R = self._body_task(lay.other_toe_point, lay.other_weld, lay.root_weld, xo)
@@ -280,7 +292,7 @@ class CommandAccelerations:
                     np.array([wb.W_p_toe]))
             qp2.add(e * h3, np.array([-thd[lay.other_toe]]), np.array([wb.W_v_toe]))
             qp2.add_reg(wb.W_qdd)
-            qdd[xo] = _solve_spd(qp2.Z, qp2.g, f"{phase} step 2 (swing foot)")  # eq. 5.23
+            qdd[xo] = _solve_spd(qp2, f"{phase} step 2 (swing foot)")  # eq. 5.23
             self.last_qp = {"a": qp1, "b": qp2}
         else:
             # 5.1.1.3: both chains to Body 17 in one problem over x = [stance chain; trailing chain], subject to
@@ -304,9 +316,10 @@ class CommandAccelerations:
             Jc, dc = self.kin.reduce(lay.other_weld, lay.root_weld)
             A = Jc[:, x]
             b = -dc
-            K = np.block([[qp.Z, A.T], [A, np.zeros((6, 6))]])
+            Z, g = qp.normal()
+            K = np.block([[Z, A.T], [A, np.zeros((6, 6))]])
             try:
-                sol = np.linalg.solve(K, np.concatenate([qp.g, b]))
+                sol = np.linalg.solve(K, np.concatenate([g, b]))
             except np.linalg.LinAlgError as exc:
                 raise CommandError(f"{phase}: the double-support KKT system is singular (weights that leave some "
                                    f"joint accelerations unpenalised, or a diverged state): {exc}") from None

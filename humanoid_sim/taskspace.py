@@ -44,18 +44,29 @@ class FrameState:
 
 
 class TaskKinematics:
-    """Evaluates frame states at (q, v) and reduces Jacobians/drifts to thesis joint space through a weld."""
+    """Evaluates frame states at (q, v) and reduces Jacobians/drifts to thesis joint space through a weld.
+
+    All registered frames are stacked (6 rows each) so that one reduction per weld serves every task; reductions
+    are cached until the next :meth:`update`.
+    """
 
     def __init__(self, hm: HumanoidModel, frames: list[str]) -> None:
         self.hm = hm
         self.model = hm.model
         self.data = hm.model.createData()
+        self.names = list(frames)
         self.frame_ids = {name: hm.frame_id(name) for name in frames}
+        self.row = {name: 6 * i for i, name in enumerate(frames)}
         self._a0 = np.zeros(hm.model.nv)
         # column selector/sign: pinocchio velocity columns -> thesis joint columns
         self.jcols = hm.theta_v_idx
         self.jsign = hm.theta_sign
+        n = len(frames)
+        self.J = np.zeros((6 * n, hm.model.nv))
+        self.drift = np.zeros(6 * n)
+        self.vel = np.zeros(6 * n)
         self.states: dict[str, FrameState] = {}
+        self._reduced: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
     def update(self, q: np.ndarray, v: np.ndarray) -> dict[str, FrameState]:
         """Compute every registered frame's state at (q, v)."""
@@ -65,25 +76,39 @@ class TaskKinematics:
         pin.updateFramePlacements(model, data)
         out = {}
         for name, fid in self.frame_ids.items():
+            i = self.row[name]
             M = data.oMf[fid]
-            J = pin.getFrameJacobian(model, data, fid, LWA)
-            vel = pin.getFrameVelocity(model, data, fid, LWA).vector
-            acc = pin.getFrameClassicalAcceleration(model, data, fid, LWA).vector
-            out[name] = FrameState(p=M.translation.copy(), R=M.rotation.copy(), v=vel.copy(), J=J.copy(),
-                                   drift=acc.copy())
+            J = self.J[i:i + 6]
+            J[:] = pin.getFrameJacobian(model, data, fid, LWA)
+            self.vel[i:i + 6] = pin.getFrameVelocity(model, data, fid, LWA).vector
+            self.drift[i:i + 6] = pin.getFrameClassicalAcceleration(model, data, fid, LWA).vector
+            out[name] = FrameState(p=M.translation.copy(), R=M.rotation.copy(), v=self.vel[i:i + 6], J=J,
+                                   drift=self.drift[i:i + 6])
         self.states = out
+        self._reduced = {}
         return out
+
+    def reduced_all(self, weld: str) -> tuple[np.ndarray, np.ndarray]:
+        """Joint-space Jacobians (6 n_frames x 26, thesis order/sign) and drifts of every registered frame, with
+        the base eliminated through the 6-D weld of frame ``weld`` (cached per update)."""
+        hit = self._reduced.get(weld)
+        if hit is not None:
+            return hit
+        i = self.row[weld]
+        Jw = self.J[i:i + 6]
+        K = np.linalg.solve(Jw[:, :6].T, self.J[:, :6].T).T  # J_b J_Wb^-1
+        J_red = (self.J[:, self.jcols] - K @ Jw[:, self.jcols]) * self.jsign
+        drift = self.drift - K @ self.drift[i:i + 6]
+        self._reduced[weld] = (J_red, drift)
+        return J_red, drift
 
     def reduce(self, task: str, weld: str, rows: slice = slice(0, 6)) -> tuple[np.ndarray, np.ndarray]:
         """Joint-space Jacobian (m x 26, thesis order/sign) and drift (m,) of ``task`` with the base eliminated
         through the 6-D weld of frame ``weld``."""
-        st, w = self.states[task], self.states[weld]
-        Jt, Jw = st.J[rows], w.J
-        Jwb_inv = np.linalg.inv(Jw[:, :6])
-        K = Jt[:, :6] @ Jwb_inv
-        J_red = (Jt[:, self.jcols] - K @ Jw[:, self.jcols]) * self.jsign
-        drift = st.drift[rows] - K @ w.drift
-        return J_red, drift
+        J_red, drift = self.reduced_all(weld)
+        i = self.row[task]
+        sl = slice(i + (rows.start or 0), i + (rows.stop if rows.stop is not None else 6))
+        return J_red[sl], drift[sl]
 
 
 def cdiag(R: np.ndarray) -> np.ndarray:
@@ -94,16 +119,12 @@ def cdiag(R: np.ndarray) -> np.ndarray:
 def cdiag_rate_matrix(R: np.ndarray) -> np.ndarray:
     """L (3x3) with d/dt C_diag = L w for angular velocity w (world): dC/dt = [w]x C, so
     d/dt C_ii = e_i . (w x c_i) = -e_i^T [c_i]x w, with c_i the i-th column of C."""
-    L = np.empty((3, 3))
-    for i in range(3):
-        c = R[:, i]
-        # row i of -[c]x
-        skew = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
-        L[i] = -skew[i]
-    return L
+    return np.array([[0.0, R[2, 0], -R[1, 0]],
+                     [-R[2, 1], 0.0, R[0, 1]],
+                     [R[1, 2], -R[0, 2], 0.0]])
 
 
 def cdiag_second_derivative_bias(R: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """The part of d2/dt2 C_diag not linear in the angular acceleration: diag([w]x [w]x C)."""
-    W = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-    return np.diag(W @ W @ R).copy()
+    """The part of d2/dt2 C_diag not linear in the angular acceleration: diag([w]x [w]x C), using
+    [w]x [w]x = w w^T - |w|^2 I."""
+    return w * (w @ R) - (w @ w) * np.diagonal(R)

@@ -271,3 +271,22 @@ def test_upper_body_equals_scalar_minimisation(hm):
         x = minimize(lambda z: cost(z[0]), [0.0], method="BFGS", options={"gtol": 1e-12}).x[0]
         assert ours[k] == pytest.approx(x, rel=1e-6, abs=1e-8)
     assert list(range(16, 26)) == Q_UPPER
+
+
+def test_cdiag_helpers_match_their_definitions():
+    """L w = d/dt diag(C) and the bias = diag([w]x [w]x C), against finite differences of C(t) = C0 expm([w]x t)
+    and the explicit skew-matrix products (the helpers use closed forms)."""
+    from scipy.linalg import expm
+
+    from humanoid_sim.taskspace import cdiag, cdiag_rate_matrix, cdiag_second_derivative_bias
+
+    rng = np.random.default_rng(15)
+    R = pin.rpy.rpyToMatrix(*rng.uniform(-1, 1, 3))
+    w = rng.normal(size=3)
+    h = 1e-6
+    C = lambda t: expm(_skew(w) * t) @ R  # world angular velocity w: dC/dt = [w]x C
+    fd = (cdiag(C(h)) - cdiag(C(-h))) / (2 * h)
+    # central difference, error O(h^2 |w|^3) ~ 1e-12 plus round-off 1e-16/h ~ 1e-10
+    np.testing.assert_allclose(cdiag_rate_matrix(R) @ w, fd, atol=1e-9)
+    W = _skew(w)
+    np.testing.assert_allclose(cdiag_second_derivative_bias(R, w), np.diag(W @ W @ R), atol=1e-14)
