@@ -1,0 +1,67 @@
+#!/usr/bin/env python
+"""Redraw the figures of a run: ``python scripts/plot.py results/sim1/results.npz [--out DIR] [--scenario YAML]``.
+
+Writes the PNGs of :func:`humanoid_sim.plots.plot_all` into ``--out`` (default: the folder of results.npz).
+The reference-trajectory figures (thesis Figs. 6.51-6.53) need the scenario: pass ``--scenario``, or leave it
+out and the scenario named in the run's summary.json is looked up in scripts/params/.
+Exit status 0 on success, 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+PARAMS_DIR = Path(__file__).resolve().parent / "params"
+
+
+def _scenario_path(results: Path, given: Path | None) -> Path | None:
+    """The scenario YAML for the reference figures: ``given``, else scripts/params/<summary scenario>.yaml."""
+    if given is not None:
+        return given
+    summary = results.parent / "summary.json"
+    if summary.is_file():
+        name = json.loads(summary.read_text(encoding="utf-8")).get("scenario")
+        if name and (PARAMS_DIR / f"{name}.yaml").is_file():
+            return PARAMS_DIR / f"{name}.yaml"
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="plot.py", description="Redraw the PNG figures of a humanoid_sim run.")
+    p.add_argument("results", type=Path, help="results.npz written by walk.py")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: next to results.npz)")
+    p.add_argument("--scenario", type=Path, default=None,
+                   help="scenario YAML for the reference-trajectory figures (default: from summary.json)")
+    args = p.parse_args(argv)
+    if not args.results.is_file():
+        print(f"plot.py: error: results file not found: {args.results}", file=sys.stderr)
+        return 2
+    from humanoid_sim.plots import PlotError, plot_all
+
+    traj = None
+    scenario = _scenario_path(args.results, args.scenario)
+    if scenario is not None:
+        from humanoid_sim.scenario import ScenarioError, load_scenario
+        from humanoid_sim.trajectory import ReferenceTrajectory
+
+        try:
+            traj = ReferenceTrajectory(load_scenario(scenario).path)
+        except ScenarioError as exc:
+            print(f"plot.py: error: {exc}", file=sys.stderr)
+            return 2
+    out = args.out if args.out is not None else args.results.parent
+    try:
+        paths = plot_all(args.results, out, traj=traj)
+    except PlotError as exc:
+        print(f"plot.py: error: {args.results}: {exc}", file=sys.stderr)
+        return 2
+    print(f"{len(paths)} figures in {out}/" + ("" if traj is not None else " (no scenario: reference figures "
+                                                                           "skipped)"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
