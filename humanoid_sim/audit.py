@@ -16,7 +16,7 @@ logged step and every foot in contact, from the results arrays alone:
 4. the whole-body ZMP (the CoP of the summed foot wrenches) against the support polygon, the convex hull of the
    polygons of the feet in contact (signed distance, m).
 
-Conventions for the counts (documented in docs/contact_audit.md): a pulling foot has no centre of pressure on
+Conventions for the counts (documented in README.md, "Contact-feasibility audit"): a pulling foot has no centre of pressure on
 its sole and violates the friction cone, so it counts as "CoP outside" and "friction exceeded" as well; a foot
 whose normal force is within +-F_TOL of zero is unloaded (no CoP, no ratio) and violates nothing; a non-finite
 wrench counts as a violation of every check.  All fractions are fractions of the steps in which the foot (or,

@@ -4,7 +4,7 @@ Four panels against time, phases shaded (red LFFSSP, blue RFFDSP, magenta RFFSSP
 normal force per foot (N, world z; below zero = the weld pulls), CoP margin per foot (mm, signed distance to the
 edge of the touching sole, > 0 inside), friction ratio |f_t|/f_n per foot against mu, and the whole-body ZMP
 margin to the support polygon (mm, > 0 inside).  Margins use a symmetric-log axis: touchdown transients reach
-metres while the interesting band is millimetres.  See docs/contact_audit.md.
+metres while the interesting band is millimetres.  See README.md, "Contact-feasibility audit".
 """
 
 from __future__ import annotations

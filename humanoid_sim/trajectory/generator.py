@@ -14,7 +14,7 @@ p = O + s r u(phi), phi = theta_CS + s theta, u = (sin phi, -cos phi), t = (cos 
 which is eq. 3.8-3.16 (hip, r = R_k) and eq. 3.34-3.41 (toes, r = R_gen) with their time derivatives;
 theta_ri and theta_CS are constant within a phase (errata T-8).
 
-Decisions (thesis silent or damaged; details in docs/thesis_notes_trajectory.md):
+Decisions (thesis silent or damaged; details in README.md, "Reference trajectories"):
 
 * D1 (T-3) ``sample`` clamps the phase time to [0, duration] and evaluates every polynomial at the
   clamped time, velocities and accelerations included, as the Simulink trajectory function did.

@@ -5,7 +5,7 @@ All quantities are SI (m, s, rad) and resolved in the world frame of design.md s
 ``Phip[i]`` (thesis P_{i+1}) and segments ``i`` = path P_{i+1} -> P_{i+2} are 0-based here; the thesis
 counts from 1.
 
-Decisions (thesis silent or damaged; see docs/thesis_notes_trajectory.md):
+Decisions (thesis silent or damaged; see README.md, "Reference trajectories"):
 
 * The hip CoM height is constant (thesis L1393: "taken to be constant and the same during all
   phases"), so every waypoint must share the same z; a path that does not is rejected rather than
