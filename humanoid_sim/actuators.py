@@ -125,7 +125,8 @@ class Actuators:
         contact force enters it), about the shoulder point, in the arm frame (errata P-8).
         """
         data = self.data
-        pin.rnea(self.model, data, q, v, a)  # also leaves the forward kinematics of q in data
+        pin.rnea(self.model, data, q, v, a)  # joint forces data.f (rnea does not update data.oMi)
+        pin.forwardKinematics(self.model, data, q)
         blocks = self._blocks(q, data)
         T = np.zeros(26)
         for (rows, comps, hj, sl, tj, higher_is_parent), Bg in zip(self._groups, blocks):
