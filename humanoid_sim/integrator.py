@@ -36,6 +36,9 @@ TABLEAUS = {
 Dynamics = Callable[[float, np.ndarray, np.ndarray, int], np.ndarray]
 """f(t, q, v, stage) -> generalized acceleration (nv,)."""
 
+Projection = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""project(q, v) -> (q, v) on a constraint manifold (applied to every stage state and to the step's end)."""
+
 
 class RungeKutta:
     """One fixed step of an explicit RK method on (q, v)."""
@@ -46,7 +49,10 @@ class RungeKutta:
         self.model = model
         self.tab = TABLEAUS[method]
 
-    def step(self, f: Dynamics, t: float, q: np.ndarray, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    def step(self, f: Dynamics, t: float, q: np.ndarray, v: np.ndarray, h: float,
+             project: Projection | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """One step of size h (s) from (q, v) at time t; ``project`` (optional) maps every stage state and the
+        result onto a constraint manifold (coordinate projection)."""
         tab = self.tab
         vs: list[np.ndarray] = []
         accs: list[np.ndarray] = []
@@ -58,8 +64,12 @@ class RungeKutta:
                 dv = sum(aij * aj for aij, aj in zip(tab.a[i], accs) if aij != 0.0)
                 qi = pin.integrate(self.model, q, h * dq)
                 vi = v + h * dv
+                if project is not None:
+                    qi, vi = project(qi, vi)
             vs.append(vi)
             accs.append(f(t + ci * h, qi, vi, i))
         q_new = pin.integrate(self.model, q, h * sum(bi * vi for bi, vi in zip(tab.b, vs)))
         v_new = v + h * sum(bi * ai for bi, ai in zip(tab.b, accs))
+        if project is not None:
+            q_new, v_new = project(q_new, v_new)
         return q_new, v_new

@@ -15,6 +15,11 @@ single support phase lasting far beyond its nominal duration stop the run with a
 up to that point is kept.  KeyboardInterrupt stops the run the same way.
 
 Decisions where the thesis is silent:
+- The support foot (welded main body plus locked toe joint, the thesis's chain root) is held exactly: every ode3
+  stage state and every step's end is projected onto it -- the base placement re-derived from the foot's anchor,
+  the base twist from the joint rates, the toe joint at its anchor angle with zero rate -- as the thesis's
+  joint-space integration holds it by construction.  The other constraints (the trailing toe in double support)
+  are held by the contact solver's Baumgarte stabilisation.
 - Logged references (``hip_p_ref``, ``toe_*_ref``, ``hip_yaw_ref``) are the planned motion at time t on the
   nominal schedule, the reference the user designed and the viewer draws; tracking errors are measured against
   it.  The controller tracks the current phase's reference clamped to the phase's nominal window (thesis 6.1.1,
@@ -120,6 +125,12 @@ class Simulator:
                                            sw.dsp_overtime_fraction)
         self.fid = {n: hm.frame_id(n) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2")}
         self.data = hm.model.createData()
+        self.proj_data = hm.model.createData()
+        self._weld_fid = {s.main_frame: hm.frame_id(s.main_frame) for s in FOOT_SPECS.values()}
+        self._lock_idx = {}
+        for s in FOOT_SPECS.values():
+            jid = hm.model.getJointId(s.toe_joint)
+            self._lock_idx[s.toe_joint] = (hm.model.idx_qs[jid], hm.model.idx_vs[jid])
         self.stage_evals = 0
 
     # ------------------------------------------------------------------ one stage
@@ -200,7 +211,8 @@ class Simulator:
                 if t >= t_stop - 1e-12:
                     reason = f"stopped at t = {t:.3f} s (requested stop time)"
                     break
-                q_new, v_new = self.rk.step(f, t, q, v, h)
+                q_new, v_new = self.rk.step(f, t, q, v, h,
+                                            lambda qs, vs: self.project_on_support(phase, anchors, qs, vs))
                 self._log(log, k, phase, t, q, v, stage0, anchors, yaw_prev)
                 q, v, t = q_new, v_new, t + h
                 steps += 1
@@ -264,6 +276,23 @@ class Simulator:
         return SimResult(log=log, phases=records, phases_planned=n_phases, completed=completed, reason=reason,
                          sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps,
                          stage_evaluations=self.stage_evals, extra={"nominal_end": nominal_end})
+
+    def project_on_support(self, phase: Phase, anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) with the support foot exactly at its anchor and at rest (see the module docstring)."""
+        spec = FOOT_SPECS[phase.support_foot]
+        model, d = self.model, self.proj_data
+        q = q.copy()
+        v = v.copy()
+        lock_q, lock_v = self._lock_idx[spec.toe_joint]
+        q[lock_q] = anchors.joint_positions[spec.toe_joint]
+        v[lock_v] = 0.0
+        fid = self._weld_fid[spec.main_frame]
+        pin.framesForwardKinematics(model, d, q)
+        base = pin.XYZQUATToSE3(q[:7])
+        q[:7] = pin.SE3ToXYZQUAT(anchors.placements[spec.main_frame] * d.oMf[fid].inverse() * base)
+        J = pin.computeFrameJacobian(model, d, q, fid, pin.ReferenceFrame.LOCAL)
+        v[:6] = -np.linalg.solve(J[:, :6], J[:, 6:] @ v[6:])
+        return q, v
 
     def _toe(self, q: np.ndarray, foot: str | None) -> np.ndarray | None:
         if foot is None:

@@ -92,3 +92,34 @@ def test_walk_cli_writes_results_and_summary(tmp_path):
         assert z["t"].shape == (50,) and z["theta"].shape == (50, 26)
         units = json.loads(str(z["signal_units"]))
         assert units["T"]["unit"] == "N m"
+
+
+def test_projection_holds_the_support_foot_exactly(hm):
+    """project_on_support puts the support foot's main body at its anchor with zero twist and its toe joint at
+    the anchor angle with zero rate, and leaves the joint coordinates (other than the toe) untouched."""
+    import pinocchio as pin
+
+    from humanoid_sim.contact import record_anchors
+    from humanoid_sim.phases import Phase
+
+    sc = load_scenario(PARAMS / "sim1.yaml")
+    sim = Simulator(hm, sc)
+    rng = np.random.default_rng(4)
+    q0 = sim.q0
+    anchors = record_anchors(hm.model, q0, Phase.RFFSSP.contacts)
+    q = pin.integrate(hm.model, q0, rng.normal(scale=0.05, size=hm.model.nv))
+    v = rng.normal(size=hm.model.nv)
+    qp, vp = sim.project_on_support(Phase.RFFSSP, anchors, q, v)
+    d = hm.model.createData()
+    pin.forwardKinematics(hm.model, d, qp, vp)
+    pin.updateFramePlacements(hm.model, d)
+    fid = hm.frame_id("O_3")
+    # round-off of one SE(3) composition and a 6x6 solve
+    assert d.oMf[fid].isApprox(anchors.placements["O_3"], 1e-12)
+    assert np.abs(pin.getFrameVelocity(hm.model, d, fid).vector).max() < 1e-12
+    i = hm.theta_index("theta3")
+    assert hm.theta_from_q(qp)[i] == pytest.approx(hm.theta_from_q(q0)[i], abs=1e-15)
+    assert hm.theta_dot_from_v(vp)[i] == 0.0
+    others = [j for j in range(26) if j != i]
+    np.testing.assert_array_equal(hm.theta_from_q(qp)[others], hm.theta_from_q(q)[others])
+    np.testing.assert_array_equal(hm.theta_dot_from_v(vp)[others], hm.theta_dot_from_v(v)[others])
