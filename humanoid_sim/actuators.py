@@ -116,18 +116,22 @@ class Actuators:
             B[np.ix_(self._vidx[sl], rows)] = Bg
         return B
 
-    def thesis_torques(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    def thesis_torques(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, tau: np.ndarray,
+                       kin_data: pin.Data | None = None) -> np.ndarray:
         """T (26,, T-bar order, N m) of the motion (q, v, a) driven by generalized torques ``tau`` (nv,).
 
         Revolute and spherical joints: the actuated components are the whole joint-space torque, so
         T_group = (U^T R_j[:, comps])^-1 tau_group (U: the joint's world axes).  Shoulders: T20/T21 are read
         off the moment transmitted to the arm (RNEA joint force of theta23/theta24; the arm is a leaf, so no
         contact force enters it), about the shoulder point, in the arm frame (errata P-8).
+        ``kin_data``: optional pinocchio Data holding the forward kinematics of q (joint placements).
         """
         data = self.data
         pin.rnea(self.model, data, q, v, a)  # joint forces data.f (rnea does not update data.oMi)
-        pin.forwardKinematics(self.model, data, q)
-        blocks = self._blocks(q, data)
+        if kin_data is None:
+            pin.forwardKinematics(self.model, data, q)
+            kin_data = data
+        blocks = self._blocks(q, kin_data)
         T = np.zeros(26)
         for (rows, comps, hj, sl, tj, higher_is_parent), Bg in zip(self._groups, blocks):
             if Bg.shape[0] == Bg.shape[1]:
@@ -135,9 +139,9 @@ class Actuators:
                     tau[self._vidx[sl]] / Bg[0, 0]
             else:
                 f = data.f[tj]  # force of the parent on the child subtree, joint frame, about the joint
-                n_world = data.oMi[tj].rotation @ f.angular
+                n_world = kin_data.oMi[tj].rotation @ f.angular
                 m = -n_world if higher_is_parent else n_world  # moment on the higher body from the lower one
-                T[rows] = (data.oMi[hj].rotation.T @ m)[comps]
+                T[rows] = (kin_data.oMi[hj].rotation.T @ m)[comps]
         return T
 
     def saturate(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

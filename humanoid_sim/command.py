@@ -253,7 +253,7 @@ class CommandAccelerations:
         return J[:, cols], drift, J, st_p.p, v6, st_b.R
 
     def compute(self, phase: str, q: np.ndarray, v: np.ndarray, ref_a: TaskReference,
-                ref_b: TaskReference | None) -> np.ndarray:
+                ref_b: TaskReference | None, data=None) -> np.ndarray:
         """Command accelerations (rad/s^2, 26,) for ``phase``.
 
         ref_a: Body-17 reference (CoM position, [V_c17; w17], C^(0,17)) at t + dt of the first step (SSP) or of
@@ -261,7 +261,7 @@ class CommandAccelerations:
         """
         lay = LAYOUTS[phase]
         wa, wb = self.params.steps[phase]
-        self.kin.update(q, v)
+        self.kin.update(q, v, data)
         th = self.hm.theta_from_q(q) - self.theta0  # deviation from the basic positions q0
         thd = self.hm.theta_dot_from_v(v)
         qdd = np.zeros(26)

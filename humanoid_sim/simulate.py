@@ -147,27 +147,36 @@ class Simulator:
         return ref_a, TaskReference(rb.toe_L_p, np.concatenate([rb.toe_L_v, rb.foot_L_w]), rb.foot_L_R)
 
     def evaluate(self, k: int, phase: Phase, anchors, t: float, q: np.ndarray, v: np.ndarray) -> dict:
-        """Controller + computed torque + saturation + forward dynamics at one state."""
+        """Controller + computed torque + saturation + forward dynamics at one state.
+
+        One pinocchio pass (placements, velocities, bias accelerations, joint Jacobians, CRBA, nonlinear effects)
+        serves the controller, the constrained inverse dynamics and the actuator map.  When no actuator saturates,
+        the computed torque realises the commanded motion exactly, so the forward dynamics of those torques is the
+        inverse solution itself; otherwise the forward dynamics is solved for the saturated torques.
+        """
         self.stage_evals += 1
         name = phase.value
         contacts = phase.contacts
         ref_a, ref_b = self._references(k, t)
-        thdd_c = self.cmd.compute(name, q, v, ref_a, ref_b)
+        rows = self.dyn.prepare(contacts, anchors, q, v)
+        thdd_c = self.cmd.compute(name, q, v, ref_a, ref_b, data=self.dyn.data)
         a_des = self.hm.v_from_theta_dot(thdd_c)
         if phase.is_double_support:
             w_tau = np.full(self.model.nv, W_TAU_DSP)
             w_lam = np.full(contacts.n_rows, W_LAMBDA_DSP)
-            inv = self.dyn.inverse(contacts, anchors, q, v, a_des, w_tau, w_lam)
+            inv = self.dyn.inverse_prepared(rows, a_des, w_tau, w_lam)
         else:
-            inv = self.dyn.inverse(contacts, anchors, q, v, a_des)
-        T_cmd = self.act.thesis_torques(q, v, inv.a, inv.tau)
+            inv = self.dyn.inverse_prepared(rows, a_des)
+        T_cmd = self.act.thesis_torques(q, v, inv.a, inv.tau, kin_data=self.dyn.data)
         T_sat, sat = self.act.saturate(T_cmd)
-        tau = inv.tau
         if sat.any():
-            B = self.act.torque_map(q)
-            tau = tau + B @ (T_sat - T_cmd)
+            B = self.act.torque_map(q, self.dyn.data)
+            tau = inv.tau + B @ (T_sat - T_cmd)
             tau[:6] = 0.0
-        fwd = self.dyn.forward(contacts, anchors, q, v, tau)
+            fwd = self.dyn.forward_prepared(rows, tau)
+        else:
+            tau = inv.tau
+            fwd = self.dyn.result_from_inverse(rows, inv)
         return {"a": fwd.a, "fwd": fwd, "thdd_c": thdd_c, "T_cmd": T_cmd, "T": T_sat, "sat": sat, "tau": tau}
 
     # ------------------------------------------------------------------ the run

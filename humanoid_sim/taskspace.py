@@ -68,11 +68,15 @@ class TaskKinematics:
         self.states: dict[str, FrameState] = {}
         self._reduced: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
-    def update(self, q: np.ndarray, v: np.ndarray) -> dict[str, FrameState]:
-        """Compute every registered frame's state at (q, v)."""
-        model, data = self.model, self.data
-        pin.forwardKinematics(model, data, q, v, self._a0)
-        pin.computeJointJacobians(model, data, q)
+    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data | None = None) -> dict[str, FrameState]:
+        """Compute every registered frame's state at (q, v).  ``data`` may be a pinocchio Data that already holds
+        ``forwardKinematics(q, v, 0)`` and ``computeJointJacobians`` at this state (shared with the contact
+        solver); the passes are then not repeated."""
+        model = self.model
+        if data is None:
+            data = self.data
+            pin.forwardKinematics(model, data, q, v, self._a0)
+            pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         out = {}
         for name, fid in self.frame_ids.items():

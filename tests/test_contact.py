@@ -427,3 +427,22 @@ def test_errors_carry_the_offending_value(hm: HumanoidModel) -> None:
         dyn.forward(redundant, record_anchors(hm.model, q, redundant), q, v, np.zeros(hm.model.nv))
     with pytest.raises(ContactSetError, match="duplicate"):
         ContactSet(("O_3", "O_3"))
+
+
+@pytest.mark.parametrize("phase", [Phase.LFFSSP, Phase.RFFSSP], ids=lambda p: p.value)
+def test_single_support_closed_form_equals_general_solution(hm: HumanoidModel, phase: Phase, monkeypatch) -> None:
+    """The single-support elimination (one weld + locks) returns the general KKT/minimum-norm solution."""
+    from humanoid_sim.contact import inverse as inv_mod
+
+    rng = np.random.default_rng(500 + PHASES.index(phase))
+    dyn = ContactDynamics(hm.model)
+    cs = phase.contacts
+    q, anchors, v, _ = _state(hm, rng, cs)
+    a_des = 5.0 * rng.standard_normal(hm.model.nv)
+    fast = dyn.inverse(cs, anchors, q, v, a_des)
+    monkeypatch.setattr(inv_mod, "_square_support", lambda rows: False)
+    general = dyn.inverse(cs, anchors, q, v, a_des)
+    # two exact solves of the same unique problem: round-off relative to torques of order 1e2-1e3 N m
+    assert _rel(fast.a, general.a) < 1e-10 and _rel(fast.tau, general.tau) < 1e-10
+    assert _rel(fast.lam, general.lam) < 1e-10
+    assert fast.dynamics_residual < 1e-8 and fast.constraint_residual < 1e-9

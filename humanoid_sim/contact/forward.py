@@ -148,6 +148,7 @@ class ContactDynamics:
         """Run the kinematics pass at (q, v) and evaluate the constraint rows; ``self.data`` then holds
         M (upper triangle), nle, placements and Jacobians at this state."""
         rows = self.rows(contacts)
+        self._q, self._v = q, v
         kinematics_pass(self.model, self.data, q, v, self._zero)
         rows.evaluate(self.model, self.data, q, v, anchors, self.gains)
         return rows
@@ -157,18 +158,23 @@ class ContactDynamics:
         """Accelerations and multipliers under ``contacts`` for generalized torques ``tau`` (nv,, zeros on
         the six base rows; N m on revolute joints)."""
         q, v = check_state(self.model, q, v)
+        rows = self.prepare(contacts, anchors, q, v)
+        return self.forward_prepared(rows, tau)
+
+    def forward_prepared(self, rows: ConstraintRows, tau: np.ndarray) -> ForwardResult:
+        """:meth:`forward` at the state of the last :meth:`prepare` (``self.data`` and ``rows`` still hold it)."""
         tau = np.asarray(tau, dtype=float)
         if tau.shape != (self.model.nv,):
             raise ContactInputError(f"tau must have shape ({self.model.nv},), got {tau.shape}")
         if np.max(np.abs(tau[:6])) > BASE_TORQUE_TOL:
             raise ContactInputError(f"tau on the unactuated free-flyer rows must be 0, got {tau[:6]}")
-        rows = self.prepare(contacts, anchors, q, v)
+        contacts = rows.contacts
         d = self.data
         if rows.m:
             a = pin.forwardDynamics(self.model, d, tau, rows.J, rows.rhs_shift, 0.0).copy()
             lam = d.lambda_c.copy()
         else:
-            a = pin.aba(self.model, d, q, v, tau).copy()
+            a = pin.aba(self.model, d, self._q, self._v, tau).copy()
             lam = np.zeros(0)
         # A rank-deficient J makes the LLT of J M^-1 J^T fail silently: catch it through the residual.
         if not (np.all(np.isfinite(a)) and np.all(np.isfinite(lam))) or (
@@ -177,10 +183,26 @@ class ContactDynamics:
             raise SingularConstraintError(
                 f"contact set {contacts.name!r}: constrained dynamics is singular at this state "
                 f"(rank J = {np.linalg.matrix_rank(rows.J)} of {rows.m} rows)")
-        return ForwardResult(contacts=contacts, a=a, lam=lam, tau=tau.copy(), M_upper=d.M.copy(), h=d.nle.copy(),
-                             J=rows.J.copy(), rhs_shift=rows.rhs_shift.copy(), velocity=rows.velocity.copy(),
-                             error=rows.error.copy(), weld_position_error=rows.weld_position_error.copy(),
+        return self._result(rows, a, lam, tau)
+
+    def result_from_inverse(self, rows: ConstraintRows, inv: InverseResult) -> ForwardResult:
+        """The forward-dynamics result of the torques ``inv.tau`` without solving again: with the same model,
+        state and constraints the forward dynamics of an inverse-dynamics torque returns exactly ``inv.a`` and
+        ``inv.lam`` (tests/test_contact.py: test_inverse_then_forward_moving)."""
+        return self._result(rows, inv.a, inv.lam, inv.tau)
+
+    def _result(self, rows: ConstraintRows, a: np.ndarray, lam: np.ndarray, tau: np.ndarray) -> ForwardResult:
+        d = self.data
+        return ForwardResult(contacts=rows.contacts, a=a, lam=lam, tau=tau.copy(), M_upper=d.M.copy(),
+                             h=d.nle.copy(), J=rows.J.copy(), rhs_shift=rows.rhs_shift.copy(),
+                             velocity=rows.velocity.copy(), error=rows.error.copy(),
+                             weld_position_error=rows.weld_position_error.copy(),
                              weld_orientation_error=rows.weld_orientation_error.copy())
+
+    def inverse_prepared(self, rows: ConstraintRows, a_desired: np.ndarray, w_tau: np.ndarray | None = None,
+                         w_lambda: np.ndarray | None = None) -> InverseResult:
+        """:meth:`inverse` at the state of the last :meth:`prepare`."""
+        return solve_inverse(self.model, self.data, rows, a_desired, w_tau, w_lambda)
 
     def inverse(self, contacts: ContactSet, anchors: Anchors, q: np.ndarray, v: np.ndarray,
                 a_desired: np.ndarray, w_tau: np.ndarray | None = None,

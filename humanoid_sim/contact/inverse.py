@@ -125,6 +125,8 @@ def solve_inverse(model: pin.Model, data: pin.Data, rows: ConstraintRows, a_desi
     h = data.nle.copy()
     J = rows.J.copy()
     r = rows.rhs_shift.copy()
+    if _square_support(rows):
+        return _solve_square(model, rows, act, M, h, J, r, a_desired)
 
     # 1. accelerations: min 1/2 |a_free - a_des_free|^2  s.t.  J a = -r   (base, locked joints unweighted)
     a = a_desired.copy()
@@ -164,6 +166,44 @@ def solve_inverse(model: pin.Model, data: pin.Data, rows: ConstraintRows, a_desi
     tau[act] = x[:n_act]
     return InverseResult(contacts=rows.contacts, tau=tau, lam=x[n_act:], a=a, a_desired=a_desired.copy(),
                          actuated=act, M=M, h=h, J=J, rhs_shift=r, A=A, free=free)
+
+
+def _square_support(rows: ConstraintRows) -> bool:
+    """One weld plus locks: the constraint rows determine exactly the base and locked-joint accelerations and
+    multipliers (single support), so the solution is unique and has a closed form."""
+    return len(rows.frame_ids) == 1
+
+
+def _solve_square(model: pin.Model, rows: ConstraintRows, act: np.ndarray, M: np.ndarray, h: np.ndarray,
+                  J: np.ndarray, r: np.ndarray, a_desired: np.ndarray) -> InverseResult:
+    """The single-support case of :func:`solve_inverse` by elimination (same unique solution, fewer flops).
+
+    Accelerations: the free joints take the desired values; the weld rows fix the base, the lock rows the locked
+    joints (J a = -r).  Torques: the base rows of M a + h = S^T tau + J^T lambda involve only the weld multiplier
+    (6 x 6 system); the joint rows then give tau, the locked rows the lock multipliers.
+    """
+    nv = model.nv
+    a = a_desired.copy()
+    a[rows.lock_v] = -r[rows.n_weld_rows:]          # lock rows: a_k = -(Kd v_k + Kp e_k)
+    Jw = J[:6]
+    rest = np.ones(nv, dtype=bool)
+    rest[:6] = False
+    try:
+        a[:6] = np.linalg.solve(Jw[:, :6], -r[:6] - Jw[:, rest] @ a[rest])
+        b = M @ a + h
+        lam_w = np.linalg.solve(Jw[:, :6].T, b[:6])
+    except np.linalg.LinAlgError:
+        raise SingularConstraintError(f"contact set {rows.contacts.name!r}: the weld's base block is "
+                                      "singular") from None
+    g = b - Jw.T @ lam_w
+    tau = np.zeros(nv)
+    tau[act] = g[act]
+    lam = np.concatenate([lam_w, g[rows.lock_v]])
+    A = np.zeros((nv, act.size + rows.m))
+    A[act, np.arange(act.size)] = 1.0
+    A[:, act.size:] = J.T
+    return InverseResult(contacts=rows.contacts, tau=tau, lam=lam, a=a, a_desired=a_desired.copy(), actuated=act,
+                         M=M, h=h, J=J, rhs_shift=r, A=A, free=act)
 
 
 def _weights(w: np.ndarray, n: int, name: str) -> np.ndarray:

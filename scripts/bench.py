@@ -1,0 +1,132 @@
+#!/usr/bin/env python
+"""Speed of the simulator, measured side by side with the thesis oracle.
+
+    python scripts/bench.py [--repeats 5] [--oracle-window 0.3] [--scenario scripts/params/sim1.yaml]
+
+Prints one JSON object:
+
+- ``real_time_factor``: simulated seconds per wall second of the fast engine on the whole scenario (default
+  Simulation 1: ode3, h = 0.01 s, controller at every stage), median of ``--repeats`` runs of the stepping loop
+  (``Simulator.run``: integration, controller, dynamics, phase logic and per-step logging);
+- ``step_ms_median``: wall milliseconds per integration step (same runs);
+- ``oracle_real_time_factor``: the same for ``--engine thesis`` over the first ``--oracle-window`` seconds;
+- ``speedup_vs_oracle``: their ratio, both measured in this one process;
+- ``setup_s``: imports and model/scenario loading, reported separately;
+- ``breakdown``: fraction of the fast run's stepping time per part (trajectory, controller, dynamics, integrator,
+  logging, other), from a cProfile run (profiling inflates the absolute time, not much the proportions).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import pstats
+import statistics
+import sys
+import time
+from pathlib import Path
+
+t_import0 = time.perf_counter()
+from humanoid_sim.model import load_model  # noqa: E402
+from humanoid_sim.scenario import load_scenario  # noqa: E402
+from humanoid_sim.simulate import Simulator  # noqa: E402
+from humanoid_sim.thesis.walk import ThesisSimulator  # noqa: E402
+
+IMPORT_S = time.perf_counter() - t_import0
+ROOT = Path(__file__).resolve().parents[1]
+
+# Profile attribution: the cumulative time of these functions (none of them calls another one of the list,
+# except the logging step, which samples the trajectory for the logged references: those samples count twice,
+# under "trajectory" and "logging"; "other" is the rest of the loop: phase logic, the touchdown reset, glue).
+PARTS = {
+    "trajectory": [("humanoid_sim/trajectory/generator.py", "sample_global")],
+    "controller": [("humanoid_sim/command.py", "compute")],
+    "dynamics": [("humanoid_sim/contact/forward.py", "prepare"), ("humanoid_sim/contact/forward.py", "inverse_prepared"),
+                 ("humanoid_sim/contact/forward.py", "forward_prepared"),
+                 ("humanoid_sim/contact/forward.py", "result_from_inverse"),
+                 ("humanoid_sim/actuators.py", "thesis_torques"), ("humanoid_sim/actuators.py", "torque_map")],
+    "integrator": [("humanoid_sim/simulate.py", "project_on_support"), ("pinocchio", "integrate")],
+    "logging": [("humanoid_sim/simulate.py", "_log")],
+}
+
+
+def _cumtime(stats: pstats.Stats, file_part: str, func: str) -> float:
+    total = 0.0
+    for (fname, _, fn), (_, _, _, ct, _) in stats.stats.items():  # type: ignore[attr-defined]
+        if fn == func and file_part in fname:
+            total += ct
+        elif file_part == "pinocchio" and fn.endswith(func) and "pinocchio" in fn:
+            total += ct
+    return total
+
+
+def breakdown(hm, scenario, t_end: float | None) -> dict[str, float]:
+    sim = Simulator(hm, scenario)
+    prof = cProfile.Profile()
+    prof.enable()
+    sim.run(t_end=t_end)
+    prof.disable()
+    stats = pstats.Stats(prof)
+    total = _cumtime(stats, "humanoid_sim/simulate.py", "run")
+    parts = {k: sum(_cumtime(stats, f, fn) for f, fn in v) for k, v in PARTS.items()}
+    parts["other"] = max(total - sum(parts.values()), 0.0)
+    return {k: round(v / total, 3) for k, v in parts.items()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--scenario", type=Path, default=ROOT / "scripts" / "params" / "sim1.yaml")
+    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--oracle-window", type=float, default=0.3, help="simulated seconds run on the oracle")
+    args = p.parse_args(argv)
+    if args.repeats < 1 or not args.oracle_window > 0:
+        print("bench.py: error: --repeats must be >= 1 and --oracle-window > 0", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    hm = load_model()
+    scenario = load_scenario(args.scenario)
+    Simulator(hm, scenario)  # warm-up construction (trajectory, IK of the initial posture)
+    setup_s = IMPORT_S + time.perf_counter() - t0
+
+    walls, steps, sim_time, completed = [], [], 0.0, True
+    for _ in range(args.repeats):
+        sim = Simulator(hm, scenario)
+        w0 = time.perf_counter()
+        res = sim.run()
+        walls.append(time.perf_counter() - w0)
+        steps.append(res.steps)
+        sim_time = res.sim_time
+        completed = completed and res.completed
+    wall = statistics.median(walls)
+    rtf = sim_time / wall
+
+    osim = ThesisSimulator(hm, load_scenario(args.scenario))
+    w0 = time.perf_counter()
+    ores = osim.run(t_end=args.oracle_window)
+    owall = time.perf_counter() - w0
+    ortf = ores.sim_time / owall
+
+    out = {
+        "scenario": scenario.name,
+        "completed": completed,
+        "sim_time_s": round(sim_time, 6),
+        "steps": steps[0],
+        "repeats": args.repeats,
+        "wall_time_s_median": round(wall, 4),
+        "wall_time_s_all": [round(w, 4) for w in walls],
+        "real_time_factor": round(rtf, 2),
+        "step_ms_median": round(1000 * wall / steps[0], 4),
+        "oracle_window_s": args.oracle_window,
+        "oracle_wall_time_s": round(owall, 3),
+        "oracle_real_time_factor": round(ortf, 4),
+        "speedup_vs_oracle": round(rtf / ortf, 1),
+        "setup_s": round(setup_s, 3),
+        "breakdown": breakdown(hm, scenario, None),
+    }
+    print(json.dumps(out, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
