@@ -134,10 +134,10 @@ class Actuators:
         blocks = self._blocks(q, kin_data)
         T = np.zeros(26)
         for (rows, comps, hj, sl, tj, higher_is_parent), Bg in zip(self._groups, blocks):
-            if Bg.shape[0] == Bg.shape[1]:
+            if len(rows) != 2:   # revolute (1 DOF, 1 component) or spherical (3, 3): the whole joint torque
                 T[rows] = np.linalg.solve(Bg, tau[self._vidx[sl]]) if len(rows) > 1 else \
                     tau[self._vidx[sl]] / Bg[0, 0]
-            else:
+            else:                # universal shoulder: x, y of the transmitted moment (its z is a reaction, P-8)
                 f = data.f[tj]  # force of the parent on the child subtree, joint frame, about the joint
                 n_world = kin_data.oMi[tj].rotation @ f.angular
                 m = -n_world if higher_is_parent else n_world  # moment on the higher body from the lower one

@@ -284,3 +284,50 @@ def test_touchdown_reset_stops_the_landing_foot(hm, P, engine, phase_from):
     assert np.abs(V).max() < 1e-10 and np.abs(w).max() < 1e-10      # rest to rounding (rates ~1 rad/s)
     changed = np.flatnonzero(res.theta_dot != thd)
     assert changed.size > 0 and changed.max() < 16                  # only q_lower (eq. 4.4) changes
+
+
+# ------------------------------------------------------------------ the fast path itself (humanoid_sim.contact)
+@pytest.mark.parametrize("phase", PHASES)
+def test_fast_contact_solver_equals_the_122x122_solution(hm, P, engine, phase):
+    """Issue 5: the simulator's own solver (ContactDynamics.forward with the phase's contact set) against the
+    thesis's direct dynamic solution, same q, q_dot and actuator torques.  The state lies on the constraint
+    manifold and the anchors are recorded at q, so the Baumgarte terms vanish and both solve the same system."""
+    from humanoid_sim.contact import ContactDynamics, record_anchors
+    from humanoid_sim.phases import Phase
+
+    q, fixed, theta, thd, thdd, root = random_state(hm, P, phase, 41)
+    rng = np.random.default_rng(6)
+    T = engine.computed_torque(phase, theta, thd, thdd, fixed).T + rng.uniform(-1, 1, 26)
+    T[[0, 8]] = 0.0                       # both toe actuators off: the held one is a lock by K-10
+    res = engine.forward_dynamics(phase, theta, thd, T, fixed)
+    kin = kinematics(phase, theta, thd, None, fixed, engine.params)
+    tau = hm.tau_from_joint_torques(Q_from_F(kin, res.F))
+    v, _ = P.motion(q, thd, np.zeros(26), root)
+    cs = Phase(phase).contacts
+    fwd = ContactDynamics(hm.model).forward(cs, record_anchors(hm.model, q, cs), q, v, tau)
+    # the issue's bound; measured ~1e-11 on |theta_ddot| ~ 1e1-1e2
+    assert np.abs(hm.theta_dot_from_v(fwd.a) - res.theta_ddot).max() < 1e-8
+    O = origins(kin, engine.params)
+    stance = [1, 3] if WELDS[phase][0] == "O_3" else [2, 4]
+    f, n = thesis_wrench(kin, O, res.F, stance, stance[1])
+    R = P.d.oMf[P.fid(WELDS[phase][0])].rotation
+    lam = fwd.lam
+    assert np.abs(R @ lam[:3] - f).max() < 1e-6 and np.abs(R @ lam[3:6] - n).max() < 1e-6
+
+
+@pytest.mark.parametrize("phase", ["RFFSSP", "LFFSSP"])
+def test_fast_computed_torque_equals_thesis_5_2(hm, P, engine, phase):
+    """Issue 4: in single support the simulator's computed torque (ContactDynamics.inverse, then
+    Actuators.thesis_torques to the thesis's Cartesian components) equals eq. 5.92 / 5.93 of the oracle."""
+    from humanoid_sim.actuators import Actuators
+    from humanoid_sim.contact import ContactDynamics, record_anchors
+    from humanoid_sim.phases import Phase
+
+    q, fixed, theta, thd, thdd, root = random_state(hm, P, phase, 51)
+    ctc = engine.computed_torque(phase, theta, thd, thdd, fixed)
+    v, a = P.motion(q, thd, thdd, root)
+    cs = Phase(phase).contacts
+    inv = ContactDynamics(hm.model).inverse(cs, record_anchors(hm.model, q, cs), q, v, a)
+    T = Actuators(hm).thesis_torques(q, v, inv.a, inv.tau)
+    # the issue's bound; measured ~1e-12 on |T| ~ 1e2 N m
+    assert np.abs(T - ctc.T).max() < 1e-8
