@@ -93,24 +93,50 @@ class Actuators:
         self._vidx = np.array(vidx)
         self._signs = np.array(signs)
         self._higher_jids = [grp[2] for grp in self._groups]
+        # The joint axes are read from the world joint Jacobian (angular rows of a revolute joint's column = its
+        # world axis), the higher bodies' rotations once per distinct body.  Revolute and spherical groups are
+        # batched by components; the universal shoulders (two components) are read off the RNEA joint force.
+        self._hj_unique = sorted(set(self._higher_jids))
+        batches: dict[tuple[int, ...], list[int]] = {}
+        self._moment_groups = []
+        for gi, (rows, comps, hj, sl, _, _) in enumerate(self._groups):
+            if len(rows) != 2:
+                batches.setdefault(tuple(comps), []).append(gi)
+            else:
+                self._moment_groups.append(gi)
+        self._batches = []  # (comps, joint positions (n_g, s), higher positions (n_g,), T rows (n_g, s), v idx)
+        for comps, gis in batches.items():
+            jpos = np.array([np.arange(self._groups[gi][3].start, self._groups[gi][3].stop) for gi in gis])
+            hpos = np.array([self._hj_unique.index(self._groups[gi][2]) for gi in gis])
+            trows = np.array([self._groups[gi][0] for gi in gis])
+            self._batches.append((np.array(comps), jpos, hpos, trows, self._vidx[jpos]))
 
-    def _blocks(self, q: np.ndarray, data: pin.Data | None = None) -> list[np.ndarray]:
-        """Per group, the block B_g (n_joints x n_T) of the torque map; ``data`` may hold forward kinematics
-        at q already (then it is not recomputed)."""
+    def _frames(self, q: np.ndarray, data: pin.Data | None) -> tuple[np.ndarray, np.ndarray, pin.Data]:
+        """World joint axes U (26, 3, thesis sign), rotations of the distinct higher bodies (n, 3, 3) and the Data
+        they came from; ``data`` may hold placements and joint Jacobians at q already (then not recomputed)."""
         if data is None:
             data = self.data
             pin.forwardKinematics(self.model, data, q)
-        axes = np.array([data.oMi[j].rotation[:, a] for j, a in zip(self._jids, self._axes)])  # (26, 3) world
-        axes *= self._signs[:, None]
-        blocks = []
-        for rows, comps, hj, sl, _, _ in self._groups:
-            Rh = data.oMi[hj].rotation  # the higher body's frame O_j is fixed to this joint with identity rotation
-            blocks.append(axes[sl] @ Rh[:, comps])
-        return blocks
+            pin.computeJointJacobians(self.model, data)
+        U = data.J[3:, self._vidx].T * self._signs[:, None]
+        Rh = np.array([M.rotation.copy() for M in [data.oMi[j] for j in self._hj_unique]])  # SE3s held
+        return U, Rh, data
+
+    def _batch_blocks(self, U: np.ndarray, Rh: np.ndarray) -> list[np.ndarray]:
+        """Per batch of square groups, the blocks B_g (n_g, s, s): world joint axes against the components'
+        world directions, B_g[i, c] = u_i . R_j e_c."""
+        return [U[jpos] @ Rh[hpos][:, :, comps] for comps, jpos, hpos, _, _ in self._batches]
+
+    def _blocks(self, q: np.ndarray, data: pin.Data | None = None) -> list[np.ndarray]:
+        """Per group, the block B_g (n_joints x n_T) of the torque map; ``data`` may hold forward kinematics
+        and joint Jacobians at q already (then they are not recomputed)."""
+        U, Rh, _ = self._frames(q, data)
+        return [U[sl] @ Rh[self._hj_unique.index(hj)][:, comps] for (_, comps, hj, sl, _, _) in self._groups]
 
     def torque_map(self, q: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
         """B (nv x 26) with tau = B T for a moment made only of the actuated components (reactions held):
-        tau_pin_i = sign_i u_i . R_j e_c for each component c of the group of joint i."""
+        tau_pin_i = sign_i u_i . R_j e_c for each component c of the group of joint i.  ``data``: optional
+        pinocchio Data holding the placements and joint Jacobians of q."""
         B = np.zeros((self.model.nv, 26))
         for (rows, _, _, sl, _, _), Bg in zip(self._groups, self._blocks(q, data)):
             B[np.ix_(self._vidx[sl], rows)] = Bg
@@ -124,24 +150,25 @@ class Actuators:
         T_group = (U^T R_j[:, comps])^-1 tau_group (U: the joint's world axes).  Shoulders: T20/T21 are read
         off the moment transmitted to the arm (RNEA joint force of theta23/theta24; the arm is a leaf, so no
         contact force enters it), about the shoulder point, in the arm frame (errata P-8).
-        ``kin_data``: optional pinocchio Data holding the forward kinematics of q (joint placements).
+        ``kin_data``: optional pinocchio Data holding the placements (forward kinematics) and the joint
+        Jacobians (``computeJointJacobians``) of q.
         """
         data = self.data
         pin.rnea(self.model, data, q, v, a)  # joint forces data.f (rnea does not update data.oMi)
-        if kin_data is None:
-            pin.forwardKinematics(self.model, data, q)
-            kin_data = data
-        blocks = self._blocks(q, kin_data)
+        U, Rh, kin_data = self._frames(q, kin_data)
         T = np.zeros(26)
-        for (rows, comps, hj, sl, tj, higher_is_parent), Bg in zip(self._groups, blocks):
-            if len(rows) != 2:   # revolute (1 DOF, 1 component) or spherical (3, 3): the whole joint torque
-                T[rows] = np.linalg.solve(Bg, tau[self._vidx[sl]]) if len(rows) > 1 else \
-                    tau[self._vidx[sl]] / Bg[0, 0]
-            else:                # universal shoulder: x, y of the transmitted moment (its z is a reaction, P-8)
-                f = data.f[tj]  # force of the parent on the child subtree, joint frame, about the joint
-                n_world = kin_data.oMi[tj].rotation @ f.angular
-                m = -n_world if higher_is_parent else n_world  # moment on the higher body from the lower one
-                T[rows] = (kin_data.oMi[hj].rotation.T @ m)[comps]
+        for (comps, jpos, hpos, trows, vidx), B in zip(self._batches, self._batch_blocks(U, Rh)):
+            if B.shape[1] == 1:
+                T[trows[:, 0]] = tau[vidx[:, 0]] / B[:, 0, 0]
+            else:
+                T[trows] = np.linalg.solve(B, tau[vidx][..., None])[..., 0]
+        for gi in self._moment_groups:  # universal shoulder: x, y of the transmitted moment (z is a reaction, P-8)
+            rows, comps, hj, sl, tj, higher_is_parent = self._groups[gi]
+            f = data.f[tj]  # force of the parent on the child subtree, joint frame, about the joint
+            oMt = kin_data.oMi[tj]  # held while its rotation is read (the array is a view into this object)
+            n_world = oMt.rotation @ f.angular
+            m = -n_world if higher_is_parent else n_world  # moment on the higher body from the lower one
+            T[rows] = (Rh[self._hj_unique.index(hj)].T @ m)[comps]
         return T
 
     def saturate(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.linalg import LinAlgError, cho_factor, cho_solve
+from scipy.linalg.lapack import dposv
 
 from humanoid_sim.model import THETA_NAMES, HumanoidModel
 from humanoid_sim.taskspace import TaskKinematics, cdiag, cdiag_rate_matrix, cdiag_second_derivative_bias
@@ -55,16 +55,6 @@ class ControllerParamError(ValueError):
 
 class CommandError(RuntimeError):
     """The command-acceleration problem has no unique solution at this state (e.g. all weights zero)."""
-
-
-def _solve_spd(qp: "QPTerms", what: str) -> np.ndarray:
-    """Solve the normal equations Z x = g of one cost (eqs. 5.11 / 5.23); Z is symmetric positive definite."""
-    Z, g = qp.normal()
-    try:
-        return cho_solve(cho_factor(Z, check_finite=False), g, check_finite=False)
-    except (LinAlgError, ValueError) as exc:
-        raise CommandError(f"{what}: the cost's normal matrix is singular or not finite (weights that leave some "
-                           f"joint accelerations unpenalised, or a diverged state): {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -168,65 +158,89 @@ class TaskReference:
     R: np.ndarray       # (3,3) orientation of the task body
 
 
-class QPTerms:
-    """Accumulates 1/2 sum (r - A x)^T diag(w) (r - A x) over x in R^n; blocks with A = s I (joint terms and the
-    acceleration penalty) are kept as diagonals.  :meth:`normal` stacks everything once: Z x = g."""
+class _CostRows:
+    """Preallocated stacked rows of one cost's tracking terms, 1/2 (r - A x)^T diag(w) (r - A x) over x in R^n,
+    plus its diagonal terms (joint deviation, acceleration penalty, toe-joint penalties: blocks with A = s I, or
+    s e_k, kept as diagonals ``dZ``, ``dg``).  :meth:`normal` forms the normal equations Z x = g."""
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, n_rows: int, n: int, w: np.ndarray) -> None:
+        self.A = np.zeros((n_rows, n))
+        self.r = np.zeros(n_rows)
+        self.w = np.asarray(w, dtype=float)[:, None]
         self.n = n
-        self.blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-        self.diag_Z = np.zeros(n)
-        self.diag_g = np.zeros(n)
-        self.diag_terms: list[tuple[float, np.ndarray, np.ndarray]] = []
 
-    def add(self, A: np.ndarray, r: np.ndarray, w: np.ndarray) -> None:
-        self.blocks.append((A, r, w))
-
-    def add_scaled_identity(self, s: float, r: np.ndarray, w: np.ndarray) -> None:
-        """A block with A = s I (n x n)."""
-        self.diag_Z += w * s * s
-        self.diag_g += w * s * r
-        self.diag_terms.append((s, r, w))
-
-    def add_reg(self, w_dd: np.ndarray) -> None:
-        """The acceleration penalty 1/2 x^T diag(w_dd) x."""
-        self.add_scaled_identity(1.0, np.zeros(self.n), w_dd)
-
-    def normal(self) -> tuple[np.ndarray, np.ndarray]:
-        """(Z, g) of the normal equations Z x = g."""
-        A = np.vstack([b[0] for b in self.blocks])
-        r = np.concatenate([b[1] for b in self.blocks])
-        w = np.concatenate([b[2] for b in self.blocks])
-        WA = A * w[:, None]
-        Z = A.T @ WA
-        Z[np.diag_indices(self.n)] += self.diag_Z
-        return Z, WA.T @ r + self.diag_g
-
-    def cost(self, x: np.ndarray) -> float:
-        """The cost function itself (for checks against direct minimisation)."""
-        c = sum(0.5 * np.sum(w * (r - A @ x) ** 2) for A, r, w in self.blocks)
-        return float(c + sum(0.5 * np.sum(w * (r - s * x) ** 2) for s, r, w in self.diag_terms))
+    def normal(self, dZ: np.ndarray, dg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(Z, g) of the normal equations Z x = g, with diagonal contributions dZ (n,) and dg (n,)."""
+        WA = self.A * self.w
+        Z = self.A.T @ WA
+        Z.flat[::self.n + 1] += dZ
+        return Z, WA.T @ self.r + dg
 
 
-def _tracking_terms(qp: QPTerms, J6: np.ndarray, drift6: np.ndarray, p: np.ndarray, v6: np.ndarray, R: np.ndarray,
-                    ref: TaskReference, w: StepWeights, dt: float) -> None:
-    """Add the position, velocity and C_diag orientation terms of one task body (J6: 6 x n over x)."""
+def _tracking_rows(A: np.ndarray, r: np.ndarray, J6: np.ndarray, drift6: np.ndarray, p: np.ndarray,
+                   v6: np.ndarray, R: np.ndarray, ref: TaskReference, dt: float) -> None:
+    """Write the 12 rows (position 3, velocity 6, C_diag orientation 3) of one task body into A / r
+    (J6: 6 x n over x, [point linear; body angular])."""
     h2 = 0.5 * dt * dt
     # position, eq. 5.1 (with the C-1 fix: drift = J_dot q_dot)
-    qp.add(J6[:3] * h2, ref.p - (p + v6[:3] * dt + drift6[:3] * h2), w.W_p)
+    np.multiply(J6[:3], h2, out=A[0:3])
+    r[0:3] = ref.p - (p + v6[:3] * dt + drift6[:3] * h2)
     # velocity, eq. 5.2
-    qp.add(J6 * dt, ref.v - (v6 + drift6 * dt), w.W_v)
+    np.multiply(J6, dt, out=A[3:9])
+    r[3:9] = ref.v - (v6 + drift6 * dt)
     # orientation, eq. 5.3: C_diag(t+dt) ~ Cd + L w dt + (L alpha + b) dt^2/2
+    w = v6[3:]
     L = cdiag_rate_matrix(R)
-    bias = cdiag_second_derivative_bias(R, v6[3:])
-    Jor = L @ J6[3:]
-    pred = cdiag(R) + L @ v6[3:] * dt + (L @ drift6[3:] + bias) * h2
-    qp.add(Jor * h2, cdiag(ref.R) - pred, w.W_or)
+    bias = cdiag_second_derivative_bias(R, w)
+    np.multiply(L @ J6[3:], h2, out=A[9:12])
+    pred = cdiag(R) + L @ w * dt + (L @ drift6[3:] + bias) * h2
+    r[9:12] = cdiag(ref.R) - pred
 
 
-def _joint_terms(qp: QPTerms, th: np.ndarray, thd: np.ndarray, W_q: np.ndarray, dt: float) -> None:
-    """Joint deviation from the basic position q0 (eqs. 5.4/5.15/5.53); ``th`` is already theta - q0."""
-    qp.add_scaled_identity(0.5 * dt * dt, -(th + thd * dt), W_q)
+def _solve_spd(Z: np.ndarray, g: np.ndarray, what: str) -> np.ndarray:
+    """Solve the normal equations Z x = g of one cost (eqs. 5.11 / 5.23); Z is symmetric positive definite
+    (LAPACK posv: the Cholesky factorisation and solve of scipy's cho_factor / cho_solve in one call)."""
+    _, x, info = dposv(Z, g)
+    if info != 0 or not np.all(np.isfinite(x)):
+        raise CommandError(f"{what}: the cost's normal matrix is singular or not finite (weights that leave some "
+                           f"joint accelerations unpenalised, or a diverged state): LAPACK posv info = {info}")
+    return x
+
+
+class _PhaseProblem:
+    """Everything about one phase's problems that does not change during the walk: index arrays, stacked
+    weights, the constant diagonal parts of the normal equations, preallocated buffers."""
+
+    def __init__(self, lay: PhaseLayout, wa: StepWeights, wb: StepWeights, theta0: np.ndarray) -> None:
+        self.xs = np.array(lay.stance_vars)
+        self.xo = np.array(lay.other_vars)
+        self.x = np.concatenate([self.xs, self.xo])
+        ns, no = self.xs.size, self.xo.size
+        wa_rows = np.concatenate([wa.W_p, wa.W_v, wa.W_or])
+        wb_rows = np.concatenate([wb.W_p, wb.W_v, wb.W_or])
+        ha, hb = 0.5 * wa.dt * wa.dt, 0.5 * wb.dt * wb.dt
+        if not lay.double:
+            self.a = _CostRows(12, ns, wa_rows)
+            self.b = _CostRows(12, no, wb_rows)
+            # joint deviation (A = h2 I) then acceleration penalty (A = I), as accumulated term by term
+            self.dZ_a = wa.W_q * ha * ha + wa.W_qdd * 1.0 * 1.0
+            self.dZ_b = wb.W_q * hb * hb + wb.W_qdd * 1.0 * 1.0
+            # swing toe joint penalties, eqs. 5.16/5.17: rows s e_k on the toe's variable
+            self.k_toe = lay.other_vars.index(lay.other_toe)
+            h3 = wb.dt3
+            self.toe_p = (0.5 * h3 * h3, wb.W_p_toe)
+            self.toe_v = (h3, wb.W_v_toe)
+            self.dZ_b[self.k_toe] += (wb.W_p_toe * self.toe_p[0] ** 2) + (wb.W_v_toe * h3 ** 2)
+        else:
+            n = ns + no
+            self.c = _CostRows(24, n, np.concatenate([wa_rows, wb_rows]))
+            W_q = np.concatenate([wa.W_q, wb.W_q])
+            self.dZ = W_q * ha * ha + np.concatenate([wa.W_qdd, wb.W_qdd]) * 1.0 * 1.0
+            self.W_q = W_q
+            self.K = np.zeros((n + 6, n + 6))
+            self.rhs = np.zeros(n + 6)
+        self.ha, self.hb = ha, hb
+        self.theta0_toe = float(theta0[lay.other_toe])
 
 
 class CommandAccelerations:
@@ -239,18 +253,19 @@ class CommandAccelerations:
         self.params = params
         self.theta0 = np.zeros(26) if theta0 is None else np.asarray(theta0, dtype=float).copy()
         self.kin = TaskKinematics(hm, TASK_FRAMES)
-        self.last_qp: dict[str, QPTerms] = {}
+        self._problems = {name: _PhaseProblem(lay, *params.steps[name], self.theta0) for name, lay in LAYOUTS.items()}
+        Wp, Wv, dt = params.upper_Wp, params.upper_Wv, params.upper_dt
+        self._upper_den = Wp * dt**4 / 4 + Wv * dt**2
+        self._q_upper = np.array(Q_UPPER)
 
-    def _body_task(self, point: str, body: str, weld: str, cols: list[int]):
-        """Joint-space Jacobian (6 x len(cols)) and drift (6,) of [point linear; body angular] through ``weld``,
-        plus the full 26-column Jacobian (for the contribution of already-commanded joints)."""
-        Jp, dp = self.kin.reduce(point, weld, slice(0, 3))
-        Jw, dw = self.kin.reduce(body, weld, slice(3, 6))
-        J = np.vstack([Jp, Jw])
-        drift = np.concatenate([dp, dw])
-        st_p, st_b = self.kin.states[point], self.kin.states[body]
+    def _body_task(self, point: str, body: str, weld: str) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                     np.ndarray, np.ndarray]:
+        """Joint-space Jacobian (6 x 26) and drift (6,) of [point linear; body angular] through ``weld``, and the
+        current point position, [point linear; body angular] velocity and body orientation."""
+        J, drift = self.kin.reduce_pair(point, body, weld)
+        st_p, st_b = self.kin.state(point), self.kin.state(body)
         v6 = np.concatenate([st_p.v[:3], st_b.v[3:]])
-        return J[:, cols], drift, J, st_p.p, v6, st_b.R
+        return J, drift, st_p.p, v6, st_b.R
 
     def compute(self, phase: str, q: np.ndarray, v: np.ndarray, ref_a: TaskReference,
                 ref_b: TaskReference | None, data=None) -> np.ndarray:
@@ -258,80 +273,71 @@ class CommandAccelerations:
 
         ref_a: Body-17 reference (CoM position, [V_c17; w17], C^(0,17)) at t + dt of the first step (SSP) or of
         the phase (DSP).  ref_b: swing toe point / toe body reference at t + dt2 (SSP only; ignored in DSP).
+        ``data``: optional pinocchio Data holding ``forwardKinematics(q, v, 0)`` and ``computeJointJacobians``.
         """
         lay = LAYOUTS[phase]
         wa, wb = self.params.steps[phase]
+        P = self._problems[phase]
         self.kin.update(q, v, data)
         th = self.hm.theta_from_q(q) - self.theta0  # deviation from the basic positions q0
         thd = self.hm.theta_dot_from_v(v)
         qdd = np.zeros(26)
         if not lay.double:
             # Step 1 (5.1.1.1.1): stance-leg joints for Body 17 and its CoM, chain rooted at the stance foot.
-            xs = lay.stance_vars
-            J, drift, _, p, v6, R = self._body_task("Pc_17", "O_17", lay.root_weld, xs)
-            qp1 = QPTerms(len(xs))
-            _tracking_terms(qp1, J, drift, p, v6, R, ref_a, wa, wa.dt)
-            _joint_terms(qp1, th[xs], thd[xs], wa.W_q, wa.dt)
-            qp1.add_reg(wa.W_qdd)
-            qdd[xs] = _solve_spd(qp1, f"{phase} step 1 (Body 17)")  # eq. 5.11
+            xs = P.xs
+            J, drift, p, v6, R = self._body_task("Pc_17", "O_17", lay.root_weld)
+            _tracking_rows(P.a.A, P.a.r, J[:, xs], drift, p, v6, R, ref_a, wa.dt)
+            # joint deviation, eqs. 5.4/5.15 (A = h2 I, r = -(theta + theta_dot dt)); acceleration penalty
+            Z, g = P.a.normal(P.dZ_a, wa.W_q * P.ha * -(th[xs] + thd[xs] * wa.dt))
+            qdd_s = _solve_spd(Z, g, f"{phase} step 1 (Body 17)")  # eq. 5.11
+            qdd[xs] = qdd_s
             # Step 2 (5.1.1.1.2): swing-leg joints for the swing toe point and toe body, given step 1.
-            xo = lay.other_vars
-            J, drift, Jfull, p, v6, R = self._body_task(lay.other_toe_point, lay.other_weld, lay.root_weld, xo)
-            drift = drift + Jfull[:, xs] @ qdd[xs]  # eq. 5.12: q_ddot_R_Hr_c enters as a known term
-            qp2 = QPTerms(len(xo))
-            _tracking_terms(qp2, J, drift, p, v6, R, ref_b, wb, wb.dt)
-            _joint_terms(qp2, th[xo], thd[xo], wb.W_q, wb.dt)
-            # swing toe joint penalties, eqs. 5.16/5.17 (theta_4 in RFFSSP, theta_3 in LFFSSP)
-            k = xo.index(lay.other_toe)
-            e = np.zeros((1, len(xo)))
-            e[0, k] = 1.0
-            h3 = wb.dt3
-            # the toe penalty is on theta itself (eq. 5.16: Delta theta_4 = theta_4), not on theta - q0
-            th_toe = th[lay.other_toe] + self.theta0[lay.other_toe]
-            qp2.add(e * 0.5 * h3 * h3, np.array([-(th_toe + thd[lay.other_toe] * h3)]),
-                    np.array([wb.W_p_toe]))
-            qp2.add(e * h3, np.array([-thd[lay.other_toe]]), np.array([wb.W_v_toe]))
-            qp2.add_reg(wb.W_qdd)
-            qdd[xo] = _solve_spd(qp2, f"{phase} step 2 (swing foot)")  # eq. 5.23
-            self.last_qp = {"a": qp1, "b": qp2}
+            xo = P.xo
+            J, drift, p, v6, R = self._body_task(lay.other_toe_point, lay.other_weld, lay.root_weld)
+            drift = drift + J[:, xs] @ qdd_s  # eq. 5.12: q_ddot_R_Hr_c enters as a known term
+            _tracking_rows(P.b.A, P.b.r, J[:, xo], drift, p, v6, R, ref_b, wb.dt)
+            dg = wb.W_q * P.hb * -(th[xo] + thd[xo] * wb.dt)
+            # swing toe joint penalties, eqs. 5.16/5.17 (theta_4 in RFFSSP, theta_3 in LFFSSP); the toe penalty is
+            # on theta itself (eq. 5.16: Delta theta_4 = theta_4), not on theta - q0
+            t = lay.other_toe
+            th_toe = th[t] + P.theta0_toe
+            (s_p, w_p), (s_v, w_v) = P.toe_p, P.toe_v
+            dg[P.k_toe] += (w_p * s_p * -(th_toe + thd[t] * s_v)) + (w_v * s_v * -thd[t])
+            Z, g = P.b.normal(P.dZ_b, dg)
+            qdd[xo] = _solve_spd(Z, g, f"{phase} step 2 (swing foot)")  # eq. 5.23
         else:
             # 5.1.1.3: both chains to Body 17 in one problem over x = [stance chain; trailing chain], subject to
             # the closed-chain constraint (eq. 5.59), solved by Lagrange multipliers (eqs. 5.62/5.63).
-            xs, xo = lay.stance_vars, lay.other_vars
-            x = xs + xo
-            n, ns = len(x), len(xs)
-            qp = QPTerms(n)
-            Ja, da, _, p, v6, R = self._body_task("Pc_17", "O_17", lay.root_weld, xs)
-            Aa = np.zeros((6, n))
-            Aa[:, :ns] = Ja
-            _tracking_terms(qp, Aa, da, p, v6, R, ref_a, wa, wa.dt)
-            Jb, db, _, p, v6, R = self._body_task("Pc_17", "O_17", lay.other_weld, xo)
-            Ab = np.zeros((6, n))
-            Ab[:, ns:] = Jb
-            _tracking_terms(qp, Ab, db, p, v6, R, ref_a, wb, wb.dt)
-            Wq = np.concatenate([wa.W_q, wb.W_q])
-            _joint_terms(qp, th[x], thd[x], Wq, wa.dt)
-            qp.add_reg(np.concatenate([wa.W_qdd, wb.W_qdd]))
+            xs, xo, x = P.xs, P.xo, P.x
+            ns, n = xs.size, x.size
+            A, r = P.c.A, P.c.r
+            Ja, da, p, v6, R = self._body_task("Pc_17", "O_17", lay.root_weld)
+            _tracking_rows(A[:12, :ns], r[:12], Ja[:, xs], da, p, v6, R, ref_a, wa.dt)
+            Jb, db, p, v6, R = self._body_task("Pc_17", "O_17", lay.other_weld)
+            _tracking_rows(A[12:, ns:], r[12:], Jb[:, xo], db, p, v6, R, ref_a, wb.dt)
+            Z, g = P.c.normal(P.dZ, P.W_q * P.ha * -(th[x] + thd[x] * wa.dt))
             # closure: the trailing toe body's acceleration through the stance chain is zero
             Jc, dc = self.kin.reduce(lay.other_weld, lay.root_weld)
-            A = Jc[:, x]
-            b = -dc
-            Z, g = qp.normal()
-            K = np.block([[Z, A.T], [A, np.zeros((6, 6))]])
+            K, rhs = P.K, P.rhs
+            K[:n, :n] = Z
+            Ac = Jc[:, x]
+            K[:n, n:] = Ac.T
+            K[n:, :n] = Ac
+            rhs[:n] = g
+            rhs[n:] = -dc
             try:
-                sol = np.linalg.solve(K, np.concatenate([g, b]))
+                sol = np.linalg.solve(K, rhs)
             except np.linalg.LinAlgError as exc:
                 raise CommandError(f"{phase}: the double-support KKT system is singular (weights that leave some "
                                    f"joint accelerations unpenalised, or a diverged state): {exc}") from None
             qdd[x] = sol[:n]
-            self.last_qp = {"dsp": qp, "A": A, "b": b}
         qdd[lay.stance_toe] = 0.0  # theta_3c / theta_4c = 0 (5.1.1.1, 5.1.1.3)
-        qdd[Q_UPPER] = self.upper(th[Q_UPPER], thd[Q_UPPER])
+        qu = self._q_upper
+        qdd[qu] = self.upper(th[qu], thd[qu])
         return qdd
 
     def upper(self, th: np.ndarray, thd: np.ndarray) -> np.ndarray:
         """Eq. 5.90, per joint; ``th`` = theta - theta_k0, theta_dot_k0 = 0 (errata C-6)."""
         Wp, Wv, dt = self.params.upper_Wp, self.params.upper_Wv, self.params.upper_dt
         num = Wp * th * dt**2 / 2 + Wp * thd * dt**3 / 2 + Wv * thd * dt
-        den = Wp * dt**4 / 4 + Wv * dt**2
-        return -num / den
+        return -num / self._upper_den

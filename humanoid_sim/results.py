@@ -79,23 +79,49 @@ def atomic_write_text(path: Path, text: str) -> None:
 
 
 class SimLog:
-    """Row-wise accumulator of the signals of :data:`SIGNALS`."""
+    """The signals of :data:`SIGNALS`, accumulated row by row (:meth:`append`) or given as whole columns
+    (:meth:`from_columns`, what the simulator does after its loop)."""
 
     def __init__(self) -> None:
         self.rows: dict[str, list[Any]] = {k: [] for k in SIGNALS}
+        self._columns: dict[str, np.ndarray] | None = None
+
+    @classmethod
+    def from_columns(cls, columns: dict[str, np.ndarray]) -> "SimLog":
+        """A log holding whole columns (first axis = step index; every signal of :data:`SIGNALS`, same length)."""
+        missing = set(SIGNALS) - set(columns)
+        extra = set(columns) - set(SIGNALS)
+        if missing or extra:
+            raise KeyError(f"log columns: missing {sorted(missing)}, unknown {sorted(extra)}")
+        lengths = {k: len(v) for k, v in columns.items()}
+        if len(set(lengths.values())) > 1:
+            raise ValueError(f"log columns: different lengths {lengths}")
+        log = cls()
+        log._columns = {k: np.asarray(columns[k]) for k in SIGNALS}
+        return log
+
+    def _to_rows(self) -> None:
+        if self._columns is not None:
+            self.rows = {k: list(np.array(c, copy=True)) for k, c in self._columns.items()}
+            self._columns = None
 
     def append(self, **values: Any) -> None:
         missing = set(SIGNALS) - set(values)
         extra = set(values) - set(SIGNALS)
         if missing or extra:
             raise KeyError(f"log row: missing {sorted(missing)}, unknown {sorted(extra)}")
+        self._to_rows()
         for k, v in values.items():
             self.rows[k].append(np.array(v, copy=True))
 
     def __len__(self) -> int:
+        if self._columns is not None:
+            return len(self._columns["t"])
         return len(self.rows["t"])
 
     def arrays(self) -> dict[str, np.ndarray]:
+        if self._columns is not None:
+            return {k: c.copy() for k, c in self._columns.items()}
         out = {}
         for k, rows in self.rows.items():
             out[k] = np.array(rows) if rows else np.zeros((0,))

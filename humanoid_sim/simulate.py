@@ -46,7 +46,7 @@ import pinocchio as pin
 from humanoid_sim.actuators import Actuators
 from humanoid_sim.command import CommandAccelerations, CommandError, TaskReference
 from humanoid_sim.contact import ContactDynamics, ContactError, record_anchors
-from humanoid_sim.contact.wrenches import ground_reactions
+from humanoid_sim.contact.wrenches import GroundReactionLog
 from humanoid_sim.impact import touchdown
 from humanoid_sim.initial import initial_configuration
 from humanoid_sim.integrator import RungeKutta
@@ -58,6 +58,7 @@ from humanoid_sim.trajectory import ReferenceTrajectory
 
 BASIC = {Phase.LFFSSP: 0, Phase.RFFDSP: 1, Phase.RFFSSP: 2, Phase.LFFDSP: 3}
 FEET = (FOOT_SPECS["R"], FOOT_SPECS["L"])
+BODY_FRAMES = ("O_1", "O_2", "O_3", "O_4")  # rows of the logged thesis ground wrenches (bodies 1-4)
 W_TAU_DSP = 1000.0  # W_act weight of actuator torques (Appendix B, errata A-3)
 W_LAMBDA_DSP = 1.0  # W_act weight of the other force components
 DIVERGED_RATE = 100.0  # rad/s or m/s: no joint or base rate of a walking 55 kg humanoid comes near this
@@ -132,19 +133,18 @@ class Simulator:
             jid = hm.model.getJointId(s.toe_joint)
             self._lock_idx[s.toe_joint] = (hm.model.idx_qs[jid], hm.model.idx_vs[jid])
         self.stage_evals = 0
+        self._w_tau = np.full(hm.model.nv, W_TAU_DSP)
+        self._w_lam = {p: np.full(p.contacts.n_rows, W_LAMBDA_DSP) for p in Phase}
+        self._reactions = GroundReactionLog(hm.model, FEET, BODY_FRAMES)
 
     # ------------------------------------------------------------------ one stage
     def _references(self, k: int, t: float) -> tuple[TaskReference, TaskReference | None]:
         info = self.traj.phases[k]
         wa, wb = self.sc.controller.steps[info.name]
-        ra = self.traj.sample_global(t + wa.dt, k)
-        ref_a = TaskReference(ra.hip_p, np.concatenate([ra.hip_v, ra.hip_w]), ra.hip_R)
+        ref_a = TaskReference(*self.traj.hip_reference(k, t + wa.dt))
         if info.swing_foot is None:
             return ref_a, None
-        rb = self.traj.sample_global(t + wb.dt, k)
-        if info.swing_foot == "R":
-            return ref_a, TaskReference(rb.toe_R_p, np.concatenate([rb.toe_R_v, rb.foot_R_w]), rb.foot_R_R)
-        return ref_a, TaskReference(rb.toe_L_p, np.concatenate([rb.toe_L_v, rb.foot_L_w]), rb.foot_L_R)
+        return ref_a, TaskReference(*self.traj.toe_reference(k, t + wb.dt, info.swing_foot))
 
     def evaluate(self, k: int, phase: Phase, anchors, t: float, q: np.ndarray, v: np.ndarray) -> dict:
         """Controller + computed torque + saturation + forward dynamics at one state.
@@ -155,16 +155,13 @@ class Simulator:
         inverse solution itself; otherwise the forward dynamics is solved for the saturated torques.
         """
         self.stage_evals += 1
-        name = phase.value
         contacts = phase.contacts
         ref_a, ref_b = self._references(k, t)
         rows = self.dyn.prepare(contacts, anchors, q, v)
-        thdd_c = self.cmd.compute(name, q, v, ref_a, ref_b, data=self.dyn.data)
+        thdd_c = self.cmd.compute(phase.value, q, v, ref_a, ref_b, data=self.dyn.data)
         a_des = self.hm.v_from_theta_dot(thdd_c)
         if phase.is_double_support:
-            w_tau = np.full(self.model.nv, W_TAU_DSP)
-            w_lam = np.full(contacts.n_rows, W_LAMBDA_DSP)
-            inv = self.dyn.inverse_prepared(rows, a_des, w_tau, w_lam)
+            inv = self.dyn.inverse_prepared(rows, a_des, self._w_tau, self._w_lam[phase])
         else:
             inv = self.dyn.inverse_prepared(rows, a_des)
         T_cmd = self.act.thesis_torques(q, v, inv.a, inv.tau, kin_data=self.dyn.data)
@@ -174,10 +171,27 @@ class Simulator:
             tau = inv.tau + B @ (T_sat - T_cmd)
             tau[:6] = 0.0
             fwd = self.dyn.forward_prepared(rows, tau)
+            a, lam = fwd.a, fwd.lam
         else:
-            tau = inv.tau
-            fwd = self.dyn.result_from_inverse(rows, inv)
-        return {"a": fwd.a, "fwd": fwd, "thdd_c": thdd_c, "T_cmd": T_cmd, "T": T_sat, "sat": sat, "tau": tau}
+            tau, a, lam = inv.tau, inv.a, inv.lam
+        return {"a": a, "lam": lam, "thdd_c": thdd_c, "T_cmd": T_cmd, "T": T_sat, "sat": sat, "tau": tau}
+
+    def _stage0_record(self, phase: Phase, out: dict) -> tuple:
+        """What the log needs from the first stage of a step, read while the solver still holds that state:
+        the evaluation's outputs, the weld drifts, the dynamics residual and the task frames' positions,
+        orientations and the hip velocity."""
+        rows = self.dyn.rows(phase.contacts)
+        d = self.dyn.data
+        a, lam, tau = out["a"], out["lam"], out["tau"]
+        M = np.triu(d.M) + np.triu(d.M, 1).T
+        residual = float(np.max(np.abs(M @ a + d.nle - tau - rows.J.T @ lam)))
+        pos = float(np.max(rows.weld_position_error)) if rows.weld_position_error.size else 0.0
+        ori = float(np.max(rows.weld_orientation_error)) if rows.weld_orientation_error.size else 0.0
+        kin = self.cmd.kin
+        hip = kin.state("Pc_17")
+        return (a, lam, out["thdd_c"], out["T_cmd"], out["T"], out["sat"], tau, pos, ori, residual,
+                hip.p, hip.v[:3].copy(), kin.state("O_17").R, kin.state("P_tpR").p, kin.state("P_tpL").p,
+                kin.state("O_1").R, kin.state("O_2").R)
 
     # ------------------------------------------------------------------ the run
     def run(self, t_end: float | None = None, progress: Callable[[float, int], None] | None = None) -> SimResult:
@@ -192,12 +206,13 @@ class Simulator:
         k = 0
         phase = Phase(traj.phases[0].name)
         anchors = record_anchors(self.model, q, phase.contacts)
-        log = SimLog()
+        raw: list[tuple] = []   # per step: (t, k, phase, q, v, nominal references) + the stage-0 record
         records = [PhaseRecord(0, phase.value, 0.0, nominal_start=traj.phases[0].t_start,
                                nominal_end=traj.phases[0].t_end)]
         toe_start = self._toe(q, traj.phases[0].swing_foot)
-        yaw_prev = {"hip": yaw_of(hm.spec.C0), "hip_ref": yaw_of(hm.spec.C0)}
-        stage0: dict = {}
+        stage0: list[tuple] = [()]
+        targets = traj.phase_targets(0)
+        fid_hip = self.fid["Pc_17"]
         completed, reason = False, ""
         steps = 0
         wall0 = time.perf_counter()
@@ -211,8 +226,7 @@ class Simulator:
                 raise SimulationError(f"non-finite acceleration at t = {ts:.3f} s in phase {k + 1} "
                                       f"({phase.value}): the motion diverged")
             if stage == 0:
-                stage0.clear()
-                stage0.update(out)
+                stage0[0] = self._stage0_record(phase, out)
             return out["a"]
 
         try:
@@ -222,19 +236,20 @@ class Simulator:
                     break
                 q_new, v_new = self.rk.step(f, t, q, v, h,
                                             lambda qs, vs: self.project_on_support(phase, anchors, qs, vs))
-                self._log(log, k, phase, t, q, v, stage0, anchors, yaw_prev)
+                raw.append((t, k, phase, q, v, traj.sample_global(t), traj.hip_reference(k, t)[0]) + stage0[0])
                 q, v, t = q_new, v_new, t + h
                 steps += 1
                 if progress is not None:
                     progress(t, k)
                 if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
                     raise SimulationError(f"non-finite state at t = {t:.3f} s in phase {k + 1} ({phase.value})")
-                if np.max(np.abs(v)) > DIVERGED_RATE:
+                if np.abs(v).max() > DIVERGED_RATE:
                     i = int(np.argmax(np.abs(v)))
                     raise SimulationError(f"diverged at t = {t:.3f} s in phase {k + 1} ({phase.value}): velocity "
                                           f"component {i} is {v[i]:.3g} (limit {DIVERGED_RATE:g} rad/s or m/s)")
-                pin.framesForwardKinematics(self.model, self.data, q)
-                hip = self.data.oMf[self.fid["Pc_17"]].translation
+                pin.forwardKinematics(self.model, self.data, q)
+                oM_hip = pin.updateFramePlacement(self.model, self.data, fid_hip)
+                hip = oM_hip.translation.copy()
                 if hip[2] < sc.simulation.fall_height_m:
                     raise SimulationError(f"fall: hip CoM height {hip[2]:.3f} m below "
                                           f"{sc.simulation.fall_height_m} m at t = {t:.3f} s")
@@ -246,10 +261,10 @@ class Simulator:
                         f"{sc.simulation.max_phase_overtime:g} x its nominal {info.duration:.3f} s "
                         f"(the swing foot never touched down)" if info.swing_foot else
                         f"phase {k + 1} ({phase.value}) has lasted {elapsed:.2f} s")
-                targets = traj.phase_targets(k)
                 switch = False
                 if info.swing_foot is not None:
-                    toe = self.data.oMf[self.fid["P_tp" + info.swing_foot]].translation
+                    oM_toe = pin.updateFramePlacement(self.model, self.data, self.fid["P_tp" + info.swing_foot])
+                    toe = oM_toe.translation.copy()
                     switch = ssp_should_end(toe, toe_start, targets.swing_toe_end, self.thresholds)
                 else:
                     switch = dsp_should_end(hip, targets.hip_p_end, elapsed, info.duration, self.thresholds)
@@ -261,6 +276,7 @@ class Simulator:
                     break
                 if info.swing_foot is not None:
                     foot = info.swing_foot
+                    pin.updateFramePlacements(self.model, self.data)
                     toe = self.data.oMf[self.fid["P_tp" + foot]].translation.copy()
                     R_toe = self.data.oMf[self.fid["O_1" if foot == "R" else "O_2"]].rotation.copy()
                     records[-1].touchdown_error_m = float(np.hypot(*(toe[:2] - targets.swing_toe_end[:2])))
@@ -275,6 +291,7 @@ class Simulator:
                 nxt = traj.phases[k]
                 records.append(PhaseRecord(k, phase.value, t, nominal_start=nxt.t_start, nominal_end=nxt.t_end))
                 toe_start = self._toe(q, nxt.swing_foot)
+                targets = traj.phase_targets(k)
         except (SimulationError, ContactError, CommandError, np.linalg.LinAlgError) as exc:
             reason = str(exc) if isinstance(exc, SimulationError) else \
                 f"{type(exc).__name__} at t = {t:.3f} s in phase {k + 1} ({phase.value}): {exc}"
@@ -282,12 +299,21 @@ class Simulator:
             reason = f"interrupted by the user at t = {t:.3f} s"
         if records and records[-1].t_end is None:
             records[-1].t_end = t
+        try:
+            log = self._build_log(raw)
+        except KeyboardInterrupt:  # an interrupt during the post-loop pass: finish it, report the interruption
+            log = self._build_log(raw)
+            if completed or not reason.startswith("interrupted"):
+                completed, reason = False, f"interrupted by the user at t = {t:.3f} s"
         return SimResult(log=log, phases=records, phases_planned=n_phases, completed=completed, reason=reason,
                          sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps,
                          stage_evaluations=self.stage_evals, extra={"nominal_end": nominal_end})
 
     def project_on_support(self, phase: Phase, anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(q, v) with the support foot exactly at its anchor and at rest (see the module docstring)."""
+        """(q, v) with the support foot exactly at its anchor and at rest (see the module docstring).
+
+        The foot's LOCAL Jacobian does not depend on the base placement, and its base block is the action matrix
+        Ad(fMb) of the base seen from the foot frame, so the base twist is -Ad(bMf) J_joints v_joints."""
         spec = FOOT_SPECS[phase.support_foot]
         model, d = self.model, self.proj_data
         q = q.copy()
@@ -296,62 +322,60 @@ class Simulator:
         q[lock_q] = anchors.joint_positions[spec.toe_joint]
         v[lock_v] = 0.0
         fid = self._weld_fid[spec.main_frame]
-        pin.framesForwardKinematics(model, d, q)
+        pin.forwardKinematics(model, d, q)
+        oMf = pin.updateFramePlacement(model, d, fid)
         base = pin.XYZQUATToSE3(q[:7])
-        q[:7] = pin.SE3ToXYZQUAT(anchors.placements[spec.main_frame] * d.oMf[fid].inverse() * base)
+        q[:7] = pin.SE3ToXYZQUAT(anchors.placements[spec.main_frame] * oMf.inverse() * base)
         J = pin.computeFrameJacobian(model, d, q, fid, pin.ReferenceFrame.LOCAL)
-        v[:6] = -np.linalg.solve(J[:, :6], J[:, 6:] @ v[6:])
+        v[:6] = -(base.actInv(oMf).toActionMatrix() @ (J[:, 6:] @ v[6:]))
         return q, v
 
     def _toe(self, q: np.ndarray, foot: str | None) -> np.ndarray | None:
         if foot is None:
             return None
-        pin.framesForwardKinematics(self.model, self.data, q)
-        return self.data.oMf[self.fid["P_tp" + foot]].translation.copy()
+        pin.forwardKinematics(self.model, self.data, q)
+        oM = pin.updateFramePlacement(self.model, self.data, self.fid["P_tp" + foot])
+        return oM.translation.copy()
 
     # ------------------------------------------------------------------ logging
-    def _log(self, log: SimLog, k: int, phase: Phase, t: float, q, v, out: dict, anchors, yaw_prev: dict) -> None:
-        hm, d = self.hm, self.data
-        fwd = out["fwd"]
-        pin.forwardKinematics(self.model, d, q, v)
-        pin.updateFramePlacements(self.model, d)
-        LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        hip_M = d.oMf[self.fid["Pc_17"]]
-        R17 = d.oMf[self.fid["O_17"]].rotation
-        ref = self.traj.sample_global(t)          # the planned motion at time t
-        ref_ctrl = self.traj.sample_global(t, k)  # what the controller tracks: clamped to the current phase
-        yaw = _unwrap_to(yaw_of(R17), yaw_prev["hip"])
-        yaw_ref = _unwrap_to(yaw_of(ref.hip_R), yaw_prev["hip_ref"])
-        yaw_prev["hip"], yaw_prev["hip_ref"] = yaw, yaw_ref
-        gr = ground_reactions(self.model, q, v, fwd.a, phase.contacts, fwd.lam, FEET)
-        bf = np.zeros((4, 3))
-        bm = np.zeros((4, 3))
-        for i, frame in enumerate(("O_1", "O_2", "O_3", "O_4")):
-            if frame in gr.bodies:
-                bf[i], bm[i] = gr.bodies[frame].force, gr.bodies[frame].moment
-        fw = np.zeros((2, 6))
-        cop = np.full((2, 3), np.nan)
-        contact = np.zeros(2, dtype=bool)
-        for i, foot in enumerate(("R", "L")):
-            if foot in gr.feet:
-                w = gr.feet[foot]
-                fw[i] = np.concatenate([w.force, w.moment])
-                cop[i] = w.cop
-                contact[i] = foot in phase.stance_feet
-        ftot = fw[:, :3].sum(axis=0)
-        mtot = fw[:, 3:].sum(axis=0)
-        zmp = np.full(3, np.nan)
-        if ftot[2] > 1e-9:
-            zmp = np.array([-mtot[1] / ftot[2], mtot[0] / ftot[2], 0.0])
-        log.append(
-            t=t, phase=k, basic_phase=BASIC[phase], q=q, v=v, theta=hm.theta_from_q(q), theta_dot=hm.theta_dot_from_v(v),
-            theta_ddot=hm.theta_dot_from_v(fwd.a), theta_ddot_cmd=out["thdd_c"], T_cmd=out["T_cmd"], T=out["T"],
-            saturated=out["sat"], tau=out["tau"], hip_p=hip_M.translation,
-            hip_p_ref=ref.hip_p, hip_p_ctrl_ref=ref_ctrl.hip_p, hip_v=pin.getFrameVelocity(self.model, d, self.fid["Pc_17"], LWA).linear,
-            hip_v_ref=ref.hip_v, hip_R=R17, hip_R_ref=ref.hip_R, hip_yaw=yaw, hip_yaw_ref=yaw_ref,
-            toe_R_p=d.oMf[self.fid["P_tpR"]].translation, toe_R_p_ref=ref.toe_R_p,
-            toe_L_p=d.oMf[self.fid["P_tpL"]].translation, toe_L_p_ref=ref.toe_L_p,
-            foot_R_R=d.oMf[self.fid["O_1"]].rotation, foot_L_R=d.oMf[self.fid["O_2"]].rotation,
-            body_force=bf, body_moment=bm, foot_wrench=fw, cop=cop, in_contact=contact, zmp=zmp,
-            drift_position=fwd.position_drift, drift_orientation=fwd.orientation_drift,
-            dynamics_residual=fwd.dynamics_residual)
+    def _build_log(self, raw: list[tuple]) -> SimLog:
+        """The log from the per-step records: stacked, with the derived signals (thesis coordinates, unwrapped
+        yaws, ground reactions, centres of pressure, ZMP) computed in one pass after the loop."""
+        hm = self.hm
+        n = len(raw)
+        if n == 0:
+            return SimLog()
+        (t, k, phase, q, v, ref, hip_ctrl, a, lam, thdd_c, T_cmd, T, sat, tau, pos, ori, res, hip_p, hip_v, R17,
+         toe_R, toe_L, R1, R2) = zip(*raw)
+        Q, V, A = np.array(q), np.array(v), np.array(a)
+        thesis = lambda X: hm.theta_sign * X[:, hm.theta_v_idx]  # noqa: E731 -- v-ordered arrays -> thesis
+        bf = np.zeros((n, 4, 3))
+        bm = np.zeros((n, 4, 3))
+        fw = np.zeros((n, 2, 6))
+        cop = np.full((n, 2, 3), np.nan)
+        for i in range(n):
+            self._reactions(Q[i], V[i], A[i], phase[i].contacts, lam[i], bf[i], bm[i], fw[i], cop[i])
+        contact = np.array([[f in ph.stance_feet for f in ("R", "L")] for ph in phase])
+        ftot = fw[:, :, :3].sum(axis=1)
+        mtot = fw[:, :, 3:].sum(axis=1)
+        zmp = np.full((n, 3), np.nan)
+        ok = ftot[:, 2] > 1e-9
+        zmp[ok] = np.stack([-mtot[ok, 1] / ftot[ok, 2], mtot[ok, 0] / ftot[ok, 2], np.zeros(ok.sum())], axis=1)
+        yaw0 = yaw_of(hm.spec.C0)
+        yaw, yaw_ref = np.empty(n), np.empty(n)
+        prev, prev_ref = yaw0, yaw0
+        for i in range(n):
+            prev = yaw[i] = _unwrap_to(yaw_of(R17[i]), prev)
+            prev_ref = yaw_ref[i] = _unwrap_to(yaw_of(ref[i].hip_R), prev_ref)
+        cols = dict(
+            t=np.array(t), phase=np.array(k), basic_phase=np.array([BASIC[ph] for ph in phase]), q=Q, v=V,
+            theta=hm.theta_sign * Q[:, hm.theta_q_idx], theta_dot=thesis(V), theta_ddot=thesis(A),
+            theta_ddot_cmd=np.array(thdd_c), T_cmd=np.array(T_cmd), T=np.array(T), saturated=np.array(sat),
+            tau=np.array(tau), hip_p=np.array(hip_p), hip_p_ref=np.array([r.hip_p for r in ref]),
+            hip_p_ctrl_ref=np.array(hip_ctrl), hip_v=np.array(hip_v), hip_v_ref=np.array([r.hip_v for r in ref]),
+            hip_R=np.array(R17), hip_R_ref=np.array([r.hip_R for r in ref]), hip_yaw=yaw, hip_yaw_ref=yaw_ref,
+            toe_R_p=np.array(toe_R), toe_R_p_ref=np.array([r.toe_R_p for r in ref]), toe_L_p=np.array(toe_L),
+            toe_L_p_ref=np.array([r.toe_L_p for r in ref]), foot_R_R=np.array(R1), foot_L_R=np.array(R2),
+            body_force=bf, body_moment=bm, foot_wrench=fw.reshape(n, 2, 6), cop=cop, in_contact=contact, zmp=zmp,
+            drift_position=np.array(pos), drift_orientation=np.array(ori), dynamics_residual=np.array(res))
+        return SimLog.from_columns(cols)

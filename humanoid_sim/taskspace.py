@@ -13,6 +13,14 @@ floating-base Pinocchio model the same matrices follow by eliminating the base t
 All quantities are in the world frame (LOCAL_WORLD_ALIGNED): linear rows = classical velocity/acceleration of
 the frame origin (m/s, m/s^2), angular rows = angular velocity/acceleration (rad/s, rad/s^2).  Columns are the
 thesis joint coordinates in eq. 4.1 order and sign (the pinocchio signs are folded in here).
+
+With world-aligned Jacobians of a free-flyer base the base block has the closed form
+``J_b J_Wb^-1 = [[I, [p_W - p_t]x], [0, I]]`` (the rigid transfer of the weld's twist to the task point), so
+no 6 x 6 solve is needed: ``J_red = [J_t,lin - J_W,lin - [p_W - p_t]x J_W,ang ; J_t,ang - J_W,ang]`` on the
+joint columns, and the drift likewise.
+
+Frame states are read lazily (only the frames a phase's problem uses) and cached until the next
+:meth:`TaskKinematics.update`.
 """
 
 from __future__ import annotations
@@ -43,11 +51,15 @@ class FrameState:
     drift: np.ndarray
 
 
+def skew(w: np.ndarray) -> np.ndarray:
+    """[w]x (3x3) with [w]x u = w x u."""
+    return np.array(((0.0, -w[2], w[1]), (w[2], 0.0, -w[0]), (-w[1], w[0], 0.0)))
+
+
 class TaskKinematics:
     """Evaluates frame states at (q, v) and reduces Jacobians/drifts to thesis joint space through a weld.
 
-    All registered frames are stacked (6 rows each) so that one reduction per weld serves every task; reductions
-    are cached until the next :meth:`update`.
+    Frames are read on first use after each :meth:`update` and cached, as are the reductions.
     """
 
     def __init__(self, hm: HumanoidModel, frames: list[str]) -> None:
@@ -56,63 +68,80 @@ class TaskKinematics:
         self.data = hm.model.createData()
         self.names = list(frames)
         self.frame_ids = {name: hm.frame_id(name) for name in frames}
-        self.row = {name: 6 * i for i, name in enumerate(frames)}
         self._a0 = np.zeros(hm.model.nv)
         # column selector/sign: pinocchio velocity columns -> thesis joint columns
         self.jcols = hm.theta_v_idx
         self.jsign = hm.theta_sign
-        n = len(frames)
-        self.J = np.zeros((6 * n, hm.model.nv))
-        self.drift = np.zeros(6 * n)
-        self.vel = np.zeros(6 * n)
-        self.states: dict[str, FrameState] = {}
-        self._reduced: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._data: pin.Data = self.data
+        self._states: dict[str, FrameState] = {}
+        self._reduced: dict[tuple[str, str, str], tuple[np.ndarray, np.ndarray]] = {}
+        self._weld_cols: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
-    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data | None = None) -> dict[str, FrameState]:
-        """Compute every registered frame's state at (q, v).  ``data`` may be a pinocchio Data that already holds
+    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data | None = None) -> None:
+        """Set the state (q, v).  ``data`` may be a pinocchio Data that already holds
         ``forwardKinematics(q, v, 0)`` and ``computeJointJacobians`` at this state (shared with the contact
         solver); the passes are then not repeated."""
-        model = self.model
         if data is None:
             data = self.data
-            pin.forwardKinematics(model, data, q, v, self._a0)
-            pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacements(model, data)
-        out = {}
-        for name, fid in self.frame_ids.items():
-            i = self.row[name]
-            M = data.oMf[fid]
-            J = self.J[i:i + 6]
-            J[:] = pin.getFrameJacobian(model, data, fid, LWA)
-            self.vel[i:i + 6] = pin.getFrameVelocity(model, data, fid, LWA).vector
-            self.drift[i:i + 6] = pin.getFrameClassicalAcceleration(model, data, fid, LWA).vector
-            out[name] = FrameState(p=M.translation.copy(), R=M.rotation.copy(), v=self.vel[i:i + 6], J=J,
-                                   drift=self.drift[i:i + 6])
-        self.states = out
+            pin.forwardKinematics(self.model, data, q, v, self._a0)
+            pin.computeJointJacobians(self.model, data, q)
+        self._data = data
+        self._states = {}
         self._reduced = {}
-        return out
+        self._weld_cols = {}
 
-    def reduced_all(self, weld: str) -> tuple[np.ndarray, np.ndarray]:
-        """Joint-space Jacobians (6 n_frames x 26, thesis order/sign) and drifts of every registered frame, with
-        the base eliminated through the 6-D weld of frame ``weld`` (cached per update)."""
-        hit = self._reduced.get(weld)
+    def state(self, name: str) -> FrameState:
+        """World-frame state of a registered frame at the current state (cached)."""
+        st = self._states.get(name)
+        if st is None:
+            model, data, fid = self.model, self._data, self.frame_ids[name]
+            M = pin.updateFramePlacement(model, data, fid)
+            st = FrameState(p=M.translation.copy(), R=M.rotation.copy(), v=pin.getFrameVelocity(model, data, fid, LWA).vector,
+                            J=pin.getFrameJacobian(model, data, fid, LWA),
+                            drift=pin.getFrameClassicalAcceleration(model, data, fid, LWA).vector)
+            self._states[name] = st
+        return st
+
+    @property
+    def states(self) -> dict[str, FrameState]:
+        """Every registered frame's state (reads the frames not read yet)."""
+        return {name: self.state(name) for name in self.names}
+
+    def _weld(self, weld: str) -> tuple[np.ndarray, np.ndarray]:
+        """The weld's joint-column Jacobian (6 x 26, pinocchio signs) and drift (cached)."""
+        hit = self._weld_cols.get(weld)
+        if hit is None:
+            st = self.state(weld)
+            hit = self._weld_cols[weld] = (st.J[:, self.jcols], st.drift)
+        return hit
+
+    def reduce_pair(self, point: str, body: str, weld: str) -> tuple[np.ndarray, np.ndarray]:
+        """Joint-space Jacobian (6 x 26, thesis order/sign) and drift (6,) of [linear motion of the origin of
+        ``point``; angular motion of ``body``], with the base eliminated through the 6-D weld of ``weld``
+        (cached per update).  ``point`` and ``body`` may be the same frame."""
+        key = (point, body, weld)
+        hit = self._reduced.get(key)
         if hit is not None:
             return hit
-        i = self.row[weld]
-        Jw = self.J[i:i + 6]
-        K = np.linalg.solve(Jw[:, :6].T, self.J[:, :6].T).T  # J_b J_Wb^-1
-        J_red = (self.J[:, self.jcols] - K @ Jw[:, self.jcols]) * self.jsign
-        drift = self.drift - K @ self.drift[i:i + 6]
-        self._reduced[weld] = (J_red, drift)
-        return J_red, drift
+        Jw, dw = self._weld(weld)
+        sp, sb, sw = self.state(point), self.state(body), self.state(weld)
+        S = skew(sw.p - sp.p)  # J_b J_Wb^-1 = [[I, S], [0, I]]
+        cols = self.jcols
+        J = np.empty((6, cols.size))
+        J[:3] = sp.J[:3, cols] - Jw[:3] - S @ Jw[3:]
+        J[3:] = sb.J[3:, cols] - Jw[3:]
+        J *= self.jsign
+        drift = np.empty(6)
+        drift[:3] = sp.drift[:3] - dw[:3] - S @ dw[3:]
+        drift[3:] = sb.drift[3:] - dw[3:]
+        self._reduced[key] = (J, drift)
+        return J, drift
 
     def reduce(self, task: str, weld: str, rows: slice = slice(0, 6)) -> tuple[np.ndarray, np.ndarray]:
         """Joint-space Jacobian (m x 26, thesis order/sign) and drift (m,) of ``task`` with the base eliminated
         through the 6-D weld of frame ``weld``."""
-        J_red, drift = self.reduced_all(weld)
-        i = self.row[task]
-        sl = slice(i + (rows.start or 0), i + (rows.stop if rows.stop is not None else 6))
-        return J_red[sl], drift[sl]
+        J, drift = self.reduce_pair(task, task, weld)
+        return J[rows], drift[rows]
 
 
 def cdiag(R: np.ndarray) -> np.ndarray:

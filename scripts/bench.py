@@ -39,15 +39,19 @@ ROOT = Path(__file__).resolve().parents[1]
 # Profile attribution: the cumulative time of these functions (none of them calls another one of the list,
 # except the logging step, which samples the trajectory for the logged references: those samples count twice,
 # under "trajectory" and "logging"; "other" is the rest of the loop: phase logic, the touchdown reset, glue).
+# Logging = the per-step record taken at the first stage plus the post-loop pass that derives the logged signals
+# (ground reactions, thesis coordinates, unwrapped yaws) in Simulator.run.
 PARTS = {
-    "trajectory": [("humanoid_sim/trajectory/generator.py", "sample_global")],
+    "trajectory": [("humanoid_sim/trajectory/generator.py", "sample_global"),
+                   ("humanoid_sim/trajectory/generator.py", "hip_reference"),
+                   ("humanoid_sim/trajectory/generator.py", "toe_reference")],
     "controller": [("humanoid_sim/command.py", "compute")],
     "dynamics": [("humanoid_sim/contact/forward.py", "prepare"), ("humanoid_sim/contact/forward.py", "inverse_prepared"),
                  ("humanoid_sim/contact/forward.py", "forward_prepared"),
                  ("humanoid_sim/contact/forward.py", "result_from_inverse"),
                  ("humanoid_sim/actuators.py", "thesis_torques"), ("humanoid_sim/actuators.py", "torque_map")],
     "integrator": [("humanoid_sim/simulate.py", "project_on_support"), ("pinocchio", "integrate")],
-    "logging": [("humanoid_sim/simulate.py", "_log")],
+    "logging": [("humanoid_sim/simulate.py", "_stage0_record"), ("humanoid_sim/simulate.py", "_build_log")],
 }
 
 

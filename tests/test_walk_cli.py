@@ -189,8 +189,11 @@ def test_injected_runtime_faults_exit_1(tmp_path, monkeypatch, fault, reason_sta
 
 
 def test_sigint_keeps_partial_results(tmp_path):
+    # sim1 with a 2 ms step: five times the work of the default walk (~5-10 s wall), so that the interrupt lands
+    # in the stepping loop however fast the simulator becomes
+    scen = sim1_variant(tmp_path, "fine", lambda d: d["simulation"].__setitem__("step_s", 0.002))
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, str(WALK), str(SIM1), "--out", str(out), "--quiet", "--no-html",
+    proc = subprocess.Popen([sys.executable, str(WALK), str(scen), "--out", str(out), "--quiet", "--no-html",
                              "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
                             cwd=ROOT)
     try:
@@ -199,7 +202,7 @@ def test_sigint_keeps_partial_results(tmp_path):
             assert proc.poll() is None, proc.communicate()
             assert time.monotonic() < deadline, "walk.py did not start simulating within 60 s"
             time.sleep(0.02)
-        time.sleep(1.0)  # ~1-2 s of simulated time; the whole walk takes ~4 s wall or more
+        time.sleep(0.5)  # a fraction of the walk: it takes several seconds of wall time
         proc.send_signal(signal.SIGINT)
         stdout, stderr = proc.communicate(timeout=60)
     finally:

@@ -26,7 +26,9 @@ Decisions (the thesis is silent or uses another formulation):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+
 import numpy as np
 import pinocchio as pin
 
@@ -171,6 +173,10 @@ class ConstraintRows:
         self.lock_q = np.array([i[0] for i in idx], dtype=int)
         self.lock_v = np.array([i[1] for i in idx], dtype=int)
         self.n_weld_rows = 6 * len(self.frame_ids)
+        mask = np.ones(self.nv, dtype=bool)
+        mask[:6] = False
+        mask[self.lock_v] = False
+        self.actuated = np.flatnonzero(mask)  # v indices of every non-base, non-locked coordinate
         self.J = np.zeros((self.m, self.nv))
         for r, k in enumerate(self.lock_v):
             self.J[self.n_weld_rows + r, k] = 1.0
@@ -185,21 +191,24 @@ class ConstraintRows:
                  gains: Baumgarte) -> None:
         """Fill the buffers at (q, v); see the class docstring for the preconditions on ``data``."""
         LOCAL = pin.ReferenceFrame.LOCAL
+        J, drift, velocity, error = self.J, self.drift, self.velocity, self.error
         for i, (name, fid) in enumerate(zip(self.contacts.welds, self.frame_ids)):
             r = slice(6 * i, 6 * i + 6)
-            self.J[r] = pin.getFrameJacobian(model, data, fid, LOCAL)
-            self.drift[r] = pin.getFrameAcceleration(model, data, fid, LOCAL).vector
-            self.velocity[r] = pin.getFrameVelocity(model, data, fid, LOCAL).vector
+            J[r] = pin.getFrameJacobian(model, data, fid, LOCAL)
+            drift[r] = pin.getFrameAcceleration(model, data, fid, LOCAL).vector
+            velocity[r] = pin.getFrameVelocity(model, data, fid, LOCAL).vector
             try:
                 anchor = anchors.placements[name]
             except KeyError:
                 raise AnchorError(f"no anchor for welded frame {name!r} (contact set {self.contacts.name!r}); "
                                   f"anchored frames: {sorted(anchors.placements)}") from None
             oMf = pin.updateFramePlacement(model, data, fid)
-            rel = anchor.actInv(oMf)
-            self.error[r] = pin.log6(rel).vector
-            self.weld_position_error[i] = np.linalg.norm(oMf.translation - anchor.translation)
-            self.weld_orientation_error[i] = np.linalg.norm(pin.log3(rel.rotation))
+            e = pin.log6(anchor.actInv(oMf)).vector
+            error[r] = e
+            dp = oMf.translation - anchor.translation
+            self.weld_position_error[i] = math.sqrt(dp @ dp)
+            # the angular part of log6 is log3 of the relative rotation: its norm is the rotation angle
+            self.weld_orientation_error[i] = math.sqrt(e[3:] @ e[3:])
         n = self.n_weld_rows
         if len(self.lock_v):
             self.velocity[n:] = v[self.lock_v]

@@ -57,9 +57,16 @@ class InverseResult:
     h: np.ndarray
     J: np.ndarray
     rhs_shift: np.ndarray
-    A: np.ndarray          # [S_act^T, J^T] (nv x (n_act + m))
     free: np.ndarray       # v indices of the free (non-base, non-locked) joints
     _null: np.ndarray | None = field(default=None, repr=False)
+    _A: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def A(self) -> np.ndarray:
+        """[S_act^T, J^T] (nv x (n_act + m)): A [tau_act; lambda] = M a + h."""
+        if self._A is None:
+            self._A = _torque_matrix(self.J, self.actuated)
+        return self._A
 
     @property
     def dynamics_residual(self) -> float:
@@ -104,10 +111,7 @@ class InverseResult:
 
 def actuated_indices(model: pin.Model, rows: ConstraintRows) -> np.ndarray:
     """v indices of the actuated coordinates: every non-base coordinate except locked joints."""
-    mask = np.ones(model.nv, dtype=bool)
-    mask[:6] = False
-    mask[rows.lock_v] = False
-    return np.flatnonzero(mask)
+    return rows.actuated
 
 
 def solve_inverse(model: pin.Model, data: pin.Data, rows: ConstraintRows, a_desired: np.ndarray,
@@ -121,12 +125,12 @@ def solve_inverse(model: pin.Model, data: pin.Data, rows: ConstraintRows, a_desi
     act = actuated_indices(model, rows)
     n_act = act.size
     free = act  # free joints = actuated coordinates (same set: non-base, non-locked)
-    M = np.triu(data.M) + np.triu(data.M, 1).T
+    M = symmetric_inertia(data.M)
     h = data.nle.copy()
     J = rows.J.copy()
     r = rows.rhs_shift.copy()
     if _square_support(rows):
-        return _solve_square(model, rows, act, M, h, J, r, a_desired)
+        return _solve_square(rows, act, M, h, J, r, a_desired, data)
 
     # 1. accelerations: min 1/2 |a_free - a_des_free|^2  s.t.  J a = -r   (base, locked joints unweighted)
     a = a_desired.copy()
@@ -148,9 +152,7 @@ def solve_inverse(model: pin.Model, data: pin.Data, rows: ConstraintRows, a_desi
 
     # 2. torques and multipliers: A x = b, x = [tau_act; lambda], weighted minimum norm.
     b = M @ a + h
-    A = np.zeros((nv, n_act + m))
-    A[act, np.arange(n_act)] = 1.0
-    A[:, n_act:] = J.T
+    A = _torque_matrix(J, act)
     wt = np.ones(n_act) if w_tau is None else _weights(w_tau, nv, "w_tau")[act]
     wl = np.ones(m) if w_lambda is None else _weights(w_lambda, m, "w_lambda")
     winv = 1.0 / np.concatenate([wt, wl])
@@ -165,7 +167,35 @@ def solve_inverse(model: pin.Model, data: pin.Data, rows: ConstraintRows, a_desi
     tau = np.zeros(nv)
     tau[act] = x[:n_act]
     return InverseResult(contacts=rows.contacts, tau=tau, lam=x[n_act:], a=a, a_desired=a_desired.copy(),
-                         actuated=act, M=M, h=h, J=J, rhs_shift=r, A=A, free=free)
+                         actuated=act, M=M, h=h, J=J, rhs_shift=r, free=free, _A=A)
+
+
+def symmetric_inertia(M_upper: np.ndarray) -> np.ndarray:
+    """The symmetric joint-space inertia from the upper triangle that ``crba`` fills (a new array)."""
+    n = M_upper.shape[0]
+    il = _lower_indices(n)
+    M = M_upper.copy()
+    M[il] = M_upper.T[il]
+    return M
+
+
+_LOWER: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _lower_indices(n: int) -> tuple[np.ndarray, np.ndarray]:
+    il = _LOWER.get(n)
+    if il is None:
+        il = _LOWER[n] = np.tril_indices(n, -1)
+    return il
+
+
+def _torque_matrix(J: np.ndarray, act: np.ndarray) -> np.ndarray:
+    """A = [S_act^T, J^T] (nv x (n_act + m))."""
+    nv = J.shape[1]
+    A = np.zeros((nv, act.size + J.shape[0]))
+    A[act, np.arange(act.size)] = 1.0
+    A[:, act.size:] = J.T
+    return A
 
 
 def _square_support(rows: ConstraintRows) -> bool:
@@ -174,36 +204,36 @@ def _square_support(rows: ConstraintRows) -> bool:
     return len(rows.frame_ids) == 1
 
 
-def _solve_square(model: pin.Model, rows: ConstraintRows, act: np.ndarray, M: np.ndarray, h: np.ndarray,
-                  J: np.ndarray, r: np.ndarray, a_desired: np.ndarray) -> InverseResult:
+def _solve_square(rows: ConstraintRows, act: np.ndarray, M: np.ndarray, h: np.ndarray, J: np.ndarray,
+                  r: np.ndarray, a_desired: np.ndarray, data: pin.Data) -> InverseResult:
     """The single-support case of :func:`solve_inverse` by elimination (same unique solution, fewer flops).
 
     Accelerations: the free joints take the desired values; the weld rows fix the base, the lock rows the locked
     joints (J a = -r).  Torques: the base rows of M a + h = S^T tau + J^T lambda involve only the weld multiplier
     (6 x 6 system); the joint rows then give tau, the locked rows the lock multipliers.
+
+    The weld's base block is the action matrix of the base placement seen from the welded frame,
+    ``J_Wb = Ad(fMb)`` (LOCAL rows, free-flyer velocity in the base frame), so its inverse is ``Ad(bMf)``:
+    no 6 x 6 solve.
     """
-    nv = model.nv
+    nv = J.shape[1]
     a = a_desired.copy()
     a[rows.lock_v] = -r[rows.n_weld_rows:]          # lock rows: a_k = -(Kd v_k + Kp e_k)
     Jw = J[:6]
-    rest = np.ones(nv, dtype=bool)
-    rest[:6] = False
-    try:
-        a[:6] = np.linalg.solve(Jw[:, :6], -r[:6] - Jw[:, rest] @ a[rest])
-        b = M @ a + h
-        lam_w = np.linalg.solve(Jw[:, :6].T, b[:6])
-    except np.linalg.LinAlgError:
+    bMf = data.oMi[1].actInv(data.oMf[rows.frame_ids[0]])
+    Jb_inv = bMf.toActionMatrix()                     # (Ad(fMb))^-1
+    if not np.all(np.isfinite(Jb_inv)):
         raise SingularConstraintError(f"contact set {rows.contacts.name!r}: the weld's base block is "
                                       "singular") from None
+    a[:6] = Jb_inv @ (-r[:6] - Jw[:, 6:] @ a[6:])
+    b = M @ a + h
+    lam_w = Jb_inv.T @ b[:6]
     g = b - Jw.T @ lam_w
     tau = np.zeros(nv)
     tau[act] = g[act]
     lam = np.concatenate([lam_w, g[rows.lock_v]])
-    A = np.zeros((nv, act.size + rows.m))
-    A[act, np.arange(act.size)] = 1.0
-    A[:, act.size:] = J.T
     return InverseResult(contacts=rows.contacts, tau=tau, lam=lam, a=a, a_desired=a_desired.copy(), actuated=act,
-                         M=M, h=h, J=J, rhs_shift=r, A=A, free=act)
+                         M=M, h=h, J=J, rhs_shift=r, free=act)
 
 
 def _weights(w: np.ndarray, n: int, name: str) -> np.ndarray:

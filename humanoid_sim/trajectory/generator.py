@@ -356,23 +356,15 @@ class ReferenceTrajectory:
         ph = self.phases[k]
         t = min(max(float(t_phase), 0.0), ph.duration)
         sg = self._segs[ph.segment]
-        s, R = sg.s, sg.R
         out = RefSample()
         out.phase, out.t_phase = k, t
 
         # ---- hip CoM on arc k (eqs. 3.8-3.16) and Body-17 yaw (3.2.3.2.2)
-        if ph.is_ssp:
-            th, thd, thdd = eval_cubic(sg.c, t)
-            phi = sg.theta_cs + s * th
-            yaw, yawd, yawdd = phi, s * thd, s * thdd     # C^(0,17) = e^(u3 (theta_CS +- theta_h))
-        else:
-            th, thd, thdd = eval_cubic(sg.d, t)
-            phi = sg.theta_cs + s * th
-            yaw, yawd, yawdd = eval_cubic(sg.e, t)        # theta_hor (L1440-1490)
-        sp, cp = math.sin(phi), math.cos(phi)
-        cen = -s * R * thd * thd   # s (r'' - r theta'^2) with r = R constant
+        sp, cp, thd, thdd, yaw, yawd, yawdd = self._hip_scalars(ph, sg, t)
+        R = sg.R
+        cen = -sg.s * R * thd * thd   # s (r'' - r theta'^2) with r = R constant
         tan = R * thdd
-        out.hip_p = np.array((sg.Ox + s * R * sp, sg.Oy - s * R * cp, self.hip_z))
+        out.hip_p = np.array((sg.Ox + sg.s * R * sp, sg.Oy - sg.s * R * cp, self.hip_z))
         out.hip_v = np.array((R * thd * cp, R * thd * sp, 0.0))
         out.hip_a = np.array((cen * sp + tan * cp, -cen * cp + tan * sp, 0.0))
         out.hip_R = _rz(yaw)
@@ -394,6 +386,58 @@ class ReferenceTrajectory:
                 (out.toe_L_p, out.toe_L_v, out.toe_L_a, out.foot_L_R, out.foot_L_w, out.foot_L_alpha,
                  out.foot_L_yaw) = vals
         return out
+
+    def _hip_scalars(self, ph: PhaseInfo, sg: _Segment, t: float) -> tuple[float, ...]:
+        """sin / cos of the hip's arc angle phi, theta_h' and theta_h'', yaw and its two rates at phase time t
+        (already clamped)."""
+        if ph.is_ssp:
+            th, thd, thdd = eval_cubic(sg.c, t)
+            phi = sg.theta_cs + sg.s * th
+            yaw, yawd, yawdd = phi, sg.s * thd, sg.s * thdd     # C^(0,17) = e^(u3 (theta_CS +- theta_h))
+        else:
+            th, thd, thdd = eval_cubic(sg.d, t)
+            phi = sg.theta_cs + sg.s * th
+            yaw, yawd, yawdd = eval_cubic(sg.e, t)        # theta_hor (L1440-1490)
+        return math.sin(phi), math.cos(phi), thd, thdd, yaw, yawd, yawdd
+
+    def _clamped(self, phase: int, t: float) -> tuple[PhaseInfo, _Segment, float]:
+        """Phase, segment and phase time clamped to the phase's nominal window, for global time t (s)."""
+        ph = self.phases[phase]
+        return ph, self._segs[ph.segment], min(max(float(t - ph.t_start), 0.0), ph.duration)
+
+    def hip_reference(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The controller's hip query: Body-17 CoM position (3,), [linear; angular] velocity (6,) and
+        orientation (3x3) at global time t clamped to ``phase`` (as ``sample_global(t, phase)``, hip only)."""
+        ph, sg, tc = self._clamped(phase, t)
+        sp, cp, thd, _, yaw, yawd, _ = self._hip_scalars(ph, sg, tc)
+        R = sg.R
+        p = np.array((sg.Ox + sg.s * R * sp, sg.Oy - sg.s * R * cp, self.hip_z))
+        v6 = np.array((R * thd * cp, R * thd * sp, 0.0, 0.0, 0.0, yawd))
+        return p, v6, _rz(yaw)
+
+    def toe_reference(self, phase: int, t: float, foot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The controller's swing query: toe point (3,), [toe-point velocity; foot angular velocity] (6,) and
+        toe-body orientation (3x3) of ``foot`` ("R"/"L") at global time t clamped to ``phase``."""
+        ph, sg, tc = self._clamped(phase, t)
+        kind, idx = self._feet[phase][foot]
+        if kind == "fix":
+            fp = self._slots[idx]
+            return fp.p, np.zeros(6), fp.R
+        p, v, _, R, w, _, _ = self._swing_sample(sg, tc)
+        return p, np.concatenate([v, w]), R
+
+    def positions(self, t: float, phase: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Hip CoM, right toe point and left toe point reference positions (3, each) at global time t, on the
+        nominal schedule or clamped to ``phase`` (as ``sample_global``, positions only)."""
+        k = self.phase_at(t) if phase is None else phase
+        ph, sg, tc = self._clamped(k, t)
+        sp, cp, *_ = self._hip_scalars(ph, sg, tc)
+        hip = np.array((sg.Ox + sg.s * sg.R * sp, sg.Oy - sg.s * sg.R * cp, self.hip_z))
+        toes = []
+        for foot in ("R", "L"):
+            kind, idx = self._feet[k][foot]
+            toes.append(self._slots[idx].p if kind == "fix" else self._swing_sample(sg, tc)[0])
+        return hip, toes[0], toes[1]
 
     @staticmethod
     def _swing_sample(sg: _Segment, t: float) -> tuple:
