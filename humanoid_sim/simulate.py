@@ -51,8 +51,9 @@ from humanoid_sim.impact import touchdown
 from humanoid_sim.initial import initial_configuration
 from humanoid_sim.integrator import RungeKutta
 from humanoid_sim.model import HumanoidModel
-from humanoid_sim.phases import FOOT_SPECS, Phase, SwitchThresholds, dsp_should_end, ssp_should_end
+from humanoid_sim.phases import FOOT_SPECS, Phase, SwitchThresholds
 from humanoid_sim.results import SimLog
+from humanoid_sim.selector import DIVERGED_RATE, PhaseRecord, PhaseSelector, SimulationError  # noqa: F401
 from humanoid_sim.scenario import Scenario
 from humanoid_sim.trajectory import ReferenceTrajectory
 
@@ -61,27 +62,6 @@ FEET = (FOOT_SPECS["R"], FOOT_SPECS["L"])
 BODY_FRAMES = ("O_1", "O_2", "O_3", "O_4")  # rows of the logged thesis ground wrenches (bodies 1-4)
 W_TAU_DSP = 1000.0  # W_act weight of actuator torques (Appendix B, errata A-3)
 W_LAMBDA_DSP = 1.0  # W_act weight of the other force components
-DIVERGED_RATE = 100.0  # rad/s or m/s: no joint or base rate of a walking 55 kg humanoid comes near this
-
-
-class SimulationError(RuntimeError):
-    """The run cannot continue; the message is the one-line reason."""
-
-
-@dataclass
-class PhaseRecord:
-    """One phase as it actually happened."""
-
-    index: int
-    name: str
-    t_start: float
-    t_end: float | None = None
-    nominal_start: float = 0.0
-    nominal_end: float = 0.0
-    touchdown_error_m: float | None = None  # |actual landing toe point - planned end toe point|, horizontal
-    landing_tilt_rad: float | None = None   # angle between the landed toe body's z-axis and the world z-axis
-
-
 @dataclass
 class SimResult:
     """Outcome of a run: the log, the phase history, and how it ended."""
@@ -195,7 +175,7 @@ class Simulator:
 
     # ------------------------------------------------------------------ the run
     def run(self, t_end: float | None = None, progress: Callable[[float, int], None] | None = None) -> SimResult:
-        sc, hm, traj = self.sc, self.hm, self.traj
+        sc, traj = self.sc, self.traj
         h = sc.simulation.step_s
         n_phases = traj.n_phases
         nominal_end = traj.phases[-1].t_end
@@ -203,30 +183,21 @@ class Simulator:
         q = self.q0.copy()
         v = np.zeros(self.model.nv)
         t = 0.0
-        k = 0
-        phase = Phase(traj.phases[0].name)
-        anchors = record_anchors(self.model, q, phase.contacts)
+        sel = PhaseSelector(traj, self.thresholds, sc.simulation, self._toe(q, traj.phases[0].swing_foot))
+        anchors = record_anchors(self.model, q, sel.phase.contacts)
         raw: list[tuple] = []   # per step: (t, k, phase, q, v, nominal references) + the stage-0 record
-        records = [PhaseRecord(0, phase.value, 0.0, nominal_start=traj.phases[0].t_start,
-                               nominal_end=traj.phases[0].t_end)]
-        toe_start = self._toe(q, traj.phases[0].swing_foot)
         stage0: list[tuple] = [()]
-        targets = traj.phase_targets(0)
         fid_hip = self.fid["Pc_17"]
         completed, reason = False, ""
         steps = 0
         wall0 = time.perf_counter()
 
         def f(ts: float, qs: np.ndarray, vs: np.ndarray, stage: int) -> np.ndarray:
-            if not (np.all(np.isfinite(qs)) and np.all(np.isfinite(vs))):
-                raise SimulationError(f"non-finite state at t = {ts:.3f} s (integration stage {stage}) in phase "
-                                      f"{k + 1} ({phase.value}): the motion diverged")
-            out = self.evaluate(k, phase, anchors, ts, qs, vs)
-            if not np.all(np.isfinite(out["a"])):
-                raise SimulationError(f"non-finite acceleration at t = {ts:.3f} s in phase {k + 1} "
-                                      f"({phase.value}): the motion diverged")
+            sel.check_stage(ts, qs, vs, stage)
+            out = self.evaluate(sel.k, sel.phase, anchors, ts, qs, vs)
+            sel.check_acceleration(ts, out["a"])
             if stage == 0:
-                stage0[0] = self._stage0_record(phase, out)
+                stage0[0] = self._stage0_record(sel.phase, out)
             return out["a"]
 
         try:
@@ -234,6 +205,7 @@ class Simulator:
                 if t >= t_stop - 1e-12:
                     reason = f"stopped at t = {t:.3f} s (requested stop time)"
                     break
+                k, phase = sel.k, sel.phase
                 q_new, v_new = self.rk.step(f, t, q, v, h,
                                             lambda qs, vs: self.project_on_support(phase, anchors, qs, vs))
                 raw.append((t, k, phase, q, v, traj.sample_global(t), traj.hip_reference(k, t)[0]) + stage0[0])
@@ -241,64 +213,38 @@ class Simulator:
                 steps += 1
                 if progress is not None:
                     progress(t, k)
-                if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-                    raise SimulationError(f"non-finite state at t = {t:.3f} s in phase {k + 1} ({phase.value})")
-                if np.abs(v).max() > DIVERGED_RATE:
-                    i = int(np.argmax(np.abs(v)))
-                    raise SimulationError(f"diverged at t = {t:.3f} s in phase {k + 1} ({phase.value}): velocity "
-                                          f"component {i} is {v[i]:.3g} (limit {DIVERGED_RATE:g} rad/s or m/s)")
-                pin.forwardKinematics(self.model, self.data, q)
-                oM_hip = pin.updateFramePlacement(self.model, self.data, fid_hip)
-                hip = oM_hip.translation.copy()
-                if hip[2] < sc.simulation.fall_height_m:
-                    raise SimulationError(f"fall: hip CoM height {hip[2]:.3f} m below "
-                                          f"{sc.simulation.fall_height_m} m at t = {t:.3f} s")
-                info = traj.phases[k]
-                elapsed = t - records[-1].t_start
-                if elapsed > sc.simulation.max_phase_overtime * info.duration:
-                    raise SimulationError(
-                        f"phase {k + 1} ({phase.value}) has lasted {elapsed:.2f} s, more than "
-                        f"{sc.simulation.max_phase_overtime:g} x its nominal {info.duration:.3f} s "
-                        f"(the swing foot never touched down)" if info.swing_foot else
-                        f"phase {k + 1} ({phase.value}) has lasted {elapsed:.2f} s")
-                switch = False
-                if info.swing_foot is not None:
-                    oM_toe = pin.updateFramePlacement(self.model, self.data, self.fid["P_tp" + info.swing_foot])
-                    toe = oM_toe.translation.copy()
-                    switch = ssp_should_end(toe, toe_start, targets.swing_toe_end, self.thresholds)
+                if np.all(np.isfinite(q)):
+                    pin.forwardKinematics(self.model, self.data, q)
+                    hip = pin.updateFramePlacement(self.model, self.data, fid_hip).translation.copy()
                 else:
-                    switch = dsp_should_end(hip, targets.hip_p_end, elapsed, info.duration, self.thresholds)
-                if not switch:
+                    hip = np.full(3, np.nan)
+                sel.check_state(t, q, v, hip)
+                swing = sel.info.swing_foot
+                toe = None
+                if swing is not None:
+                    toe = pin.updateFramePlacement(self.model, self.data, self.fid["P_tp" + swing]).translation.copy()
+                if not sel.should_switch(t, hip, toe):
                     continue
-                records[-1].t_end = t
-                if k + 1 >= n_phases:
+                sel.end_phase(t)
+                if sel.is_last:
                     completed, reason = True, f"all {n_phases} phases completed at t = {t:.3f} s"
                     break
-                if info.swing_foot is not None:
-                    foot = info.swing_foot
+                if swing is not None:  # touchdown: SSP -> DSP
                     pin.updateFramePlacements(self.model, self.data)
-                    toe = self.data.oMf[self.fid["P_tp" + foot]].translation.copy()
-                    R_toe = self.data.oMf[self.fid["O_1" if foot == "R" else "O_2"]].rotation.copy()
-                    records[-1].touchdown_error_m = float(np.hypot(*(toe[:2] - targets.swing_toe_end[:2])))
-                    records[-1].landing_tilt_rad = float(np.arccos(np.clip(R_toe[2, 2], -1.0, 1.0)))
-                    key = f"Wadj_qdot_{phase.value}_to_{phase.next.value}"
+                    R_toe = self.data.oMf[self.fid["O_1" if swing == "R" else "O_2"]].rotation.copy()
+                    key = sel.record_touchdown(toe, R_toe)
                     res = touchdown(self.model, q, v, phase, sc.simulation.impact_law, w_adj=sc.W_adj.get(key))
                     v = res.v_plus
-                    traj.set_landing(foot, k, toe, R_toe)
-                k += 1
-                phase = phase.next
-                anchors = record_anchors(self.model, q, phase.contacts, previous=anchors)
-                nxt = traj.phases[k]
-                records.append(PhaseRecord(k, phase.value, t, nominal_start=nxt.t_start, nominal_end=nxt.t_end))
-                toe_start = self._toe(q, nxt.swing_foot)
-                targets = traj.phase_targets(k)
+                    traj.set_landing(swing, k, toe, R_toe)
+                sel.advance(t, self._toe(q, traj.phases[k + 1].swing_foot))
+                anchors = record_anchors(self.model, q, sel.phase.contacts, previous=anchors)
         except (SimulationError, ContactError, CommandError, np.linalg.LinAlgError) as exc:
             reason = str(exc) if isinstance(exc, SimulationError) else \
-                f"{type(exc).__name__} at t = {t:.3f} s in phase {k + 1} ({phase.value}): {exc}"
+                f"{type(exc).__name__} at t = {t:.3f} s in {sel.where()}: {exc}"
         except KeyboardInterrupt:
             reason = f"interrupted by the user at t = {t:.3f} s"
-        if records and records[-1].t_end is None:
-            records[-1].t_end = t
+        sel.close(t)
+        records = sel.records
         try:
             log = self._build_log(raw)
         except KeyboardInterrupt:  # an interrupt during the post-loop pass: finish it, report the interruption

@@ -71,10 +71,11 @@ from humanoid_sim.contact.wrenches import centre_of_pressure
 from humanoid_sim.initial import initial_configuration
 from humanoid_sim.integrator import TABLEAUS, Tableau
 from humanoid_sim.model import HumanoidModel
-from humanoid_sim.phases import Phase, SwitchThresholds, dsp_should_end, ssp_should_end
+from humanoid_sim.phases import Phase, SwitchThresholds
 from humanoid_sim.results import SimLog
 from humanoid_sim.scenario import Scenario
-from humanoid_sim.simulate import BASIC, PhaseRecord, SimResult, SimulationError, Simulator, _unwrap_to, yaw_of
+from humanoid_sim.selector import PhaseSelector, SimulationError
+from humanoid_sim.simulate import BASIC, SimResult, Simulator, _unwrap_to, yaw_of
 from humanoid_sim.thesis.dynamics import DynamicsError
 from humanoid_sim.thesis.engine import ThesisEngine
 from humanoid_sim.thesis.forces import N_F, default_w_act
@@ -248,17 +249,14 @@ class ThesisSimulator:
         n_phases = traj.n_phases
         nominal_end = traj.phases[-1].t_end
         t_stop = t_end if t_end is not None else (sc.simulation.t_end_s or np.inf)
-        k = 0
         phase = Phase(traj.phases[0].name)
         fixed = self.initial_fixed(phase)
         theta = self.theta0.copy()
         theta_dot = np.zeros(26)
         t = 0.0
         log = SimLog()
-        records = [PhaseRecord(0, phase.value, 0.0, nominal_start=traj.phases[0].t_start,
-                               nominal_end=traj.phases[0].t_end)]
         kin = positions(phase.value, theta, fixed, self.params)
-        toe_start = self._toe(kin, traj.phases[0].swing_foot)
+        sel = PhaseSelector(traj, self.thresholds, sc.simulation, self._toe(kin, traj.phases[0].swing_foot))
         yaw_prev = {"hip": yaw_of(self.hm.spec.C0), "hip_ref": yaw_of(self.hm.spec.C0)}
         stage0: dict = {}
         completed, reason = False, ""
@@ -266,13 +264,9 @@ class ThesisSimulator:
         wall0 = time.perf_counter()
 
         def f(ts: float, th: np.ndarray, thd: np.ndarray, stage: int) -> np.ndarray:
-            if not (np.all(np.isfinite(th)) and np.all(np.isfinite(thd))):
-                raise SimulationError(f"non-finite state at t = {ts:.3f} s (integration stage {stage}) in phase "
-                                      f"{k + 1} ({phase.value}): the motion diverged")
-            out = self.evaluate(k, phase, fixed, ts, th, thd)
-            if not np.all(np.isfinite(out["thdd"])):
-                raise SimulationError(f"non-finite acceleration at t = {ts:.3f} s in phase {k + 1} "
-                                      f"({phase.value}): the motion diverged")
+            sel.check_stage(ts, th, thd, stage)
+            out = self.evaluate(sel.k, sel.phase, fixed, ts, th, thd)
+            sel.check_acceleration(ts, out["thdd"])
             if stage == 0:
                 stage0.clear()
                 stage0.update(out)
@@ -283,65 +277,46 @@ class ThesisSimulator:
                 if t >= t_stop - 1e-12:
                     reason = f"stopped at t = {t:.3f} s (requested stop time)"
                     break
+                k, phase = sel.k, sel.phase
                 th_new, thd_new = self._step(f, t, theta, theta_dot, h)
                 self._log(log, k, phase, t, theta, theta_dot, fixed, stage0, yaw_prev)
                 theta, theta_dot, t = th_new, thd_new, t + h
                 steps += 1
                 if progress is not None:
                     progress(t, k)
-                if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(theta_dot))):
-                    raise SimulationError(f"non-finite state at t = {t:.3f} s in phase {k + 1} ({phase.value})")
-                kin = positions(phase.value, theta, fixed, self.params)
-                hip = kin.P["c17"]
-                if hip[2] < sc.simulation.fall_height_m:
-                    raise SimulationError(f"fall: hip CoM height {hip[2]:.3f} m below "
-                                          f"{sc.simulation.fall_height_m} m at t = {t:.3f} s")
-                info = traj.phases[k]
-                elapsed = t - records[-1].t_start
-                if elapsed > sc.simulation.max_phase_overtime * info.duration:
-                    raise SimulationError(
-                        f"phase {k + 1} ({phase.value}) has lasted {elapsed:.2f} s, more than "
-                        f"{sc.simulation.max_phase_overtime:g} x its nominal {info.duration:.3f} s "
-                        f"(the swing foot never touched down)" if info.swing_foot else
-                        f"phase {k + 1} ({phase.value}) has lasted {elapsed:.2f} s")
-                targets = traj.phase_targets(k)
-                if info.swing_foot is not None:
-                    switch = ssp_should_end(kin.P[TOE_POINT[info.swing_foot]], toe_start, targets.swing_toe_end,
-                                            self.thresholds)
-                else:
-                    switch = dsp_should_end(hip, targets.hip_p_end, elapsed, info.duration, self.thresholds)
-                if not switch:
+                finite = np.all(np.isfinite(theta))
+                kin = positions(phase.value, theta, fixed, self.params) if finite else None
+                hip = kin.P["c17"] if finite else np.full(3, np.nan)
+                sel.check_state(t, theta, theta_dot, hip)
+                swing = sel.info.swing_foot
+                toe = kin.P[TOE_POINT[swing]] if swing is not None else None
+                if not sel.should_switch(t, hip, toe):
                     continue
-                records[-1].t_end = t
-                if k + 1 >= n_phases:
+                sel.end_phase(t)
+                if sel.is_last:
                     completed, reason = True, f"all {n_phases} phases completed at t = {t:.3f} s"
                     break
-                if info.swing_foot is not None:     # touchdown: SSP -> DSP
-                    foot = info.swing_foot
-                    toe = kin.P[TOE_POINT[foot]].copy()
-                    R_toe = kin.C[TOE_BODY[foot]].copy()
-                    records[-1].touchdown_error_m = float(np.hypot(*(toe[:2] - targets.swing_toe_end[:2])))
-                    records[-1].landing_tilt_rad = float(np.arccos(np.clip(R_toe[2, 2], -1.0, 1.0)))
-                    key = f"Wadj_qdot_{phase.value}_to_{phase.next.value}"
+                if swing is not None:     # touchdown: SSP -> DSP
+                    toe = toe.copy()
+                    R_toe = kin.C[TOE_BODY[swing]].copy()
+                    key = sel.record_touchdown(toe, R_toe)
                     if key not in sc.W_adj:
                         raise SimulationError(f"touchdown at t = {t:.3f} s: the scenario has no reset.{key}")
                     res = self.engine.touchdown_reset(phase.value, theta, theta_dot, fixed, sc.W_adj[key])
                     theta_dot = res.theta_dot
-                    traj.set_landing(foot, k, toe, R_toe)
-                    fixed = {**fixed, foot: FootState(R_toe, toe)}   # the landed toe body: the new chain root
-                k += 1
-                phase = phase.next
-                fixed = {ft: fixed[ft] for ft in phase.stance_feet}   # lift-off drops the trailing toe's data
-                nxt = traj.phases[k]
-                records.append(PhaseRecord(k, phase.value, t, nominal_start=nxt.t_start, nominal_end=nxt.t_end))
-                toe_start = self._toe(positions(phase.value, theta, fixed, self.params), nxt.swing_foot)
+                    traj.set_landing(swing, k, toe, R_toe)
+                    fixed = {**fixed, swing: FootState(R_toe, toe)}   # the landed toe body: the new chain root
+                nxt_phase = phase.next
+                fixed = {ft: fixed[ft] for ft in nxt_phase.stance_feet}   # lift-off drops the trailing toe's data
+                sel.advance(t, self._toe(positions(nxt_phase.value, theta, fixed, self.params),
+                                         traj.phases[k + 1].swing_foot))
         except (SimulationError, DynamicsError, PhaseError, np.linalg.LinAlgError) as exc:
             reason = str(exc) if isinstance(exc, SimulationError) else \
-                f"{type(exc).__name__} at t = {t:.3f} s in phase {k + 1} ({phase.value}): {exc}"
+                f"{type(exc).__name__} at t = {t:.3f} s in {sel.where()}: {exc}"
         except KeyboardInterrupt:
             reason = f"interrupted by the user at t = {t:.3f} s"
-        if records and records[-1].t_end is None:
-            records[-1].t_end = t
+        sel.close(t)
+        records = sel.records
         return SimResult(log=log, phases=records, phases_planned=n_phases, completed=completed, reason=reason,
                          sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps,
                          stage_evaluations=self.stage_evals, extra={"nominal_end": nominal_end, "engine": "thesis"})
