@@ -10,9 +10,9 @@ At each step boundary the phase selector (6.1.1) decides: SSP -> DSP on touchdow
 velocity reset of 4.5 or an inelastic impact, the landing foot welded where it landed, the trajectory told
 the actual landing); DSP -> SSP on the hip-distance or overtime rule (no state change).
 
-Failure handling: a non-finite state, a singular constraint system, the hip CoM below the fall height or a
-single support phase lasting far beyond its nominal duration stop the run with a one-line reason; the log
-up to that point is kept.  KeyboardInterrupt stops the run the same way.
+Failure handling (``selector.PhaseSelector``): a non-finite or diverging state, a singular constraint or command
+system, the hip CoM below the fall height or a phase lasting far beyond its nominal duration stop the run with a
+one-line reason; the log up to that point is kept.  KeyboardInterrupt stops the run the same way.
 
 Decisions where the thesis is silent:
 - The support foot (welded main body plus locked toe joint, the thesis's chain root) is held exactly: every ode3
@@ -53,7 +53,8 @@ from humanoid_sim.integrator import RungeKutta
 from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import FOOT_SPECS, Phase, SwitchThresholds
 from humanoid_sim.results import SimLog
-from humanoid_sim.selector import DIVERGED_RATE, PhaseRecord, PhaseSelector, SimulationError  # noqa: F401
+# PhaseRecord and SimulationError are part of this module's interface (SimResult.phases, Simulator.run's failures)
+from humanoid_sim.selector import PhaseRecord, PhaseSelector, SimulationError
 from humanoid_sim.scenario import Scenario
 from humanoid_sim.trajectory import ReferenceTrajectory
 
