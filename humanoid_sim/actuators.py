@@ -110,6 +110,10 @@ class Actuators:
             hpos = np.array([self._hj_unique.index(self._groups[gi][2]) for gi in gis])
             trows = np.array([self._groups[gi][0] for gi in gis])
             self._batches.append((np.array(comps), jpos, hpos, trows, self._vidx[jpos]))
+        # batches using all three moment components need no component selection
+        self._batch_all_comps = [comps == (0, 1, 2) for comps in batches]
+        # per universal-shoulder group, the position of its higher body in the rotations array
+        self._moment_hpos = {gi: self._hj_unique.index(self._groups[gi][2]) for gi in self._moment_groups}
 
     def _frames(self, q: np.ndarray, data: pin.Data | None) -> tuple[np.ndarray, np.ndarray, pin.Data]:
         """World joint axes U (26, 3, thesis sign), rotations of the distinct higher bodies (n, 3, 3) and the Data
@@ -119,13 +123,15 @@ class Actuators:
             pin.forwardKinematics(self.model, data, q)
             pin.computeJointJacobians(self.model, data)
         U = data.J[3:, self._vidx].T * self._signs[:, None]
-        Rh = np.array([M.rotation.copy() for M in [data.oMi[j] for j in self._hj_unique]])  # SE3s held
+        placements = [data.oMi[j] for j in self._hj_unique]  # SE3s held while np.array copies their rotations
+        Rh = np.array([M.rotation for M in placements])
         return U, Rh, data
 
     def _batch_blocks(self, U: np.ndarray, Rh: np.ndarray) -> list[np.ndarray]:
         """Per batch of square groups, the blocks B_g (n_g, s, s): world joint axes against the components'
         world directions, B_g[i, c] = u_i . R_j e_c."""
-        return [U[jpos] @ Rh[hpos][:, :, comps] for comps, jpos, hpos, _, _ in self._batches]
+        return [U[jpos] @ (Rh[hpos] if all_comps else Rh[hpos][:, :, comps])
+                for (comps, jpos, hpos, _, _), all_comps in zip(self._batches, self._batch_all_comps)]
 
     def _blocks(self, q: np.ndarray, data: pin.Data | None = None) -> list[np.ndarray]:
         """Per group, the block B_g (n_joints x n_T) of the torque map; ``data`` may hold forward kinematics
@@ -168,7 +174,7 @@ class Actuators:
             oMt = kin_data.oMi[tj]  # held while its rotation is read (the array is a view into this object)
             n_world = oMt.rotation @ f.angular
             m = -n_world if higher_is_parent else n_world  # moment on the higher body from the lower one
-            T[rows] = (Rh[self._hj_unique.index(hj)].T @ m)[comps]
+            T[rows] = (Rh[self._moment_hpos[gi]].T @ m)[comps]
         return T
 
     def saturate(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -38,7 +38,7 @@ import numpy as np
 from scipy.linalg.lapack import dposv
 
 from humanoid_sim.model import THETA_NAMES, HumanoidModel
-from humanoid_sim.taskspace import TaskKinematics, cdiag, cdiag_rate_matrix, cdiag_second_derivative_bias
+from humanoid_sim.taskspace import TaskKinematics, cdiag_rate_matrix, cdiag_second_derivative_bias
 
 IDX = {n: i for i, n in enumerate(THETA_NAMES)}
 Q_R_H = [IDX[n] for n in ("theta3", "theta5", "theta7", "theta9", "theta11", "theta13", "theta15", "theta17r")]
@@ -193,15 +193,15 @@ def _tracking_rows(A: np.ndarray, r: np.ndarray, J6: np.ndarray, drift6: np.ndar
     L = cdiag_rate_matrix(R)
     bias = cdiag_second_derivative_bias(R, w)
     np.multiply(L @ J6[3:], h2, out=A[9:12])
-    pred = cdiag(R) + L @ w * dt + (L @ drift6[3:] + bias) * h2
-    r[9:12] = cdiag(ref.R) - pred
+    pred = R.diagonal() + L @ w * dt + (L @ drift6[3:] + bias) * h2  # R.diagonal() = cdiag(R), as a view
+    r[9:12] = ref.R.diagonal() - pred
 
 
 def _solve_spd(Z: np.ndarray, g: np.ndarray, what: str) -> np.ndarray:
     """Solve the normal equations Z x = g of one cost (eqs. 5.11 / 5.23); Z is symmetric positive definite
     (LAPACK posv: the Cholesky factorisation and solve of scipy's cho_factor / cho_solve in one call)."""
     _, x, info = dposv(Z, g)
-    if info != 0 or not np.all(np.isfinite(x)):
+    if info != 0 or not np.isfinite(x).all():
         raise CommandError(f"{what}: the cost's normal matrix is singular or not finite (weights that leave some "
                            f"joint accelerations unpenalised, or a diverged state): LAPACK posv info = {info}")
     return x
@@ -256,16 +256,19 @@ class CommandAccelerations:
         self._problems = {name: _PhaseProblem(lay, *params.steps[name], self.theta0) for name, lay in LAYOUTS.items()}
         Wp, Wv, dt = params.upper_Wp, params.upper_Wv, params.upper_dt
         self._upper_den = Wp * dt**4 / 4 + Wv * dt**2
+        self._upper_dt2, self._upper_dt3 = dt**2, dt**3  # constant powers of eq. 5.90, computed once
         self._q_upper = np.array(Q_UPPER)
 
     def _body_task(self, point: str, body: str, weld: str) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                                      np.ndarray, np.ndarray]:
         """Joint-space Jacobian (6 x 26) and drift (6,) of [point linear; body angular] through ``weld``, and the
         current point position, [point linear; body angular] velocity and body orientation."""
-        J, drift = self.kin.reduce_pair(point, body, weld)
-        st_p, st_b = self.kin.state(point), self.kin.state(body)
-        v6 = np.concatenate([st_p.v[:3], st_b.v[3:]])
-        return J, drift, st_p.p, v6, st_b.R
+        kin = self.kin
+        J, drift = kin.reduce_pair(point, body, weld)
+        v6 = kin.velocity(point)
+        if kin.parent_joint[point] != kin.parent_joint[body]:  # else the angular rows are already the body's
+            v6 = np.concatenate([v6[:3], kin.velocity(body)[3:]])
+        return J, drift, kin.placement(point)[0], v6, kin.placement(body)[1]
 
     def compute(self, phase: str, q: np.ndarray, v: np.ndarray, ref_a: TaskReference,
                 ref_b: TaskReference | None, data=None) -> np.ndarray:
@@ -339,5 +342,5 @@ class CommandAccelerations:
     def upper(self, th: np.ndarray, thd: np.ndarray) -> np.ndarray:
         """Eq. 5.90, per joint; ``th`` = theta - theta_k0, theta_dot_k0 = 0 (errata C-6)."""
         Wp, Wv, dt = self.params.upper_Wp, self.params.upper_Wv, self.params.upper_dt
-        num = Wp * th * dt**2 / 2 + Wp * thd * dt**3 / 2 + Wv * thd * dt
+        num = Wp * th * self._upper_dt2 / 2 + Wp * thd * self._upper_dt3 / 2 + Wv * thd * dt
         return -num / self._upper_den

@@ -68,20 +68,20 @@ class PhaseSelector:
 
     def check_stage(self, t: float, state: np.ndarray, rates: np.ndarray, stage: int) -> None:
         """Raise :class:`SimulationError` if an integration stage's state is not finite."""
-        if not (np.all(np.isfinite(state)) and np.all(np.isfinite(rates))):
+        if not (np.isfinite(state).all() and np.isfinite(rates).all()):
             raise SimulationError(f"non-finite state at t = {t:.3f} s (integration stage {stage}) in "
                                   f"{self.where()}: the motion diverged")
 
     def check_acceleration(self, t: float, acc: np.ndarray) -> None:
         """Raise :class:`SimulationError` if the dynamics returned a non-finite acceleration."""
-        if not np.all(np.isfinite(acc)):
+        if not np.isfinite(acc).all():
             raise SimulationError(f"non-finite acceleration at t = {t:.3f} s in {self.where()}: the motion "
                                   f"diverged")
 
     def check_state(self, t: float, state: np.ndarray, rates: np.ndarray, hip_p: np.ndarray) -> None:
         """Raise :class:`SimulationError` on a non-finite state, rates above :data:`DIVERGED_RATE`, the hip CoM
         below the fall height or a phase lasting more than ``max_phase_overtime`` x its nominal duration."""
-        if not (np.all(np.isfinite(state)) and np.all(np.isfinite(rates))):
+        if not (np.isfinite(state).all() and np.isfinite(rates).all()):
             raise SimulationError(f"non-finite state at t = {t:.3f} s in {self.where()}")
         i = int(np.argmax(np.abs(rates)))
         if abs(rates[i]) > DIVERGED_RATE:

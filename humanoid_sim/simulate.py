@@ -155,7 +155,8 @@ class Simulator:
             a, lam = fwd.a, fwd.lam
         else:
             tau, a, lam = inv.tau, inv.a, inv.lam
-        return {"a": a, "lam": lam, "thdd_c": thdd_c, "T_cmd": T_cmd, "T": T_sat, "sat": sat, "tau": tau}
+        return {"a": a, "lam": lam, "thdd_c": thdd_c, "T_cmd": T_cmd, "T": T_sat, "sat": sat, "tau": tau,
+                "M": inv.M}
 
     def _stage0_record(self, phase: Phase, out: dict) -> tuple:
         """What the log needs from the first stage of a step, read while the solver still holds that state:
@@ -164,15 +165,15 @@ class Simulator:
         rows = self.dyn.rows(phase.contacts)
         d = self.dyn.data
         a, lam, tau = out["a"], out["lam"], out["tau"]
-        M = np.triu(d.M) + np.triu(d.M, 1).T
+        M = out["M"]  # the symmetric joint-space inertia of this state (from the upper triangle crba fills)
         residual = float(np.max(np.abs(M @ a + d.nle - tau - rows.J.T @ lam)))
         pos = float(np.max(rows.weld_position_error)) if rows.weld_position_error.size else 0.0
         ori = float(np.max(rows.weld_orientation_error)) if rows.weld_orientation_error.size else 0.0
         kin = self.cmd.kin
-        hip = kin.state("Pc_17")
         return (a, lam, out["thdd_c"], out["T_cmd"], out["T"], out["sat"], tau, pos, ori, residual,
-                hip.p, hip.v[:3].copy(), kin.state("O_17").R, kin.state("P_tpR").p, kin.state("P_tpL").p,
-                kin.state("O_1").R, kin.state("O_2").R)
+                kin.placement("Pc_17")[0], kin.velocity("Pc_17")[:3].copy(), kin.placement("O_17")[1],
+                kin.placement("P_tpR")[0], kin.placement("P_tpL")[0], kin.placement("O_1")[1],
+                kin.placement("O_2")[1])
 
     # ------------------------------------------------------------------ the run
     def run(self, t_end: float | None = None, progress: Callable[[float, int], None] | None = None) -> SimResult:
@@ -214,7 +215,7 @@ class Simulator:
                 steps += 1
                 if progress is not None:
                     progress(t, k)
-                if np.all(np.isfinite(q)):
+                if np.isfinite(q).all():
                     pin.forwardKinematics(self.model, self.data, q)
                     hip = pin.updateFramePlacement(self.model, self.data, fid_hip).translation.copy()
                 else:

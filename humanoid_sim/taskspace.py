@@ -59,7 +59,8 @@ def skew(w: np.ndarray) -> np.ndarray:
 class TaskKinematics:
     """Evaluates frame states at (q, v) and reduces Jacobians/drifts to thesis joint space through a weld.
 
-    Frames are read on first use after each :meth:`update` and cached, as are the reductions.
+    Frames are read on first use after each :meth:`update` and cached per quantity (placement, velocity,
+    Jacobian and drift), as are the reductions.  Arrays returned are valid until the next :meth:`update`.
     """
 
     def __init__(self, hm: HumanoidModel, frames: list[str]) -> None:
@@ -68,14 +69,21 @@ class TaskKinematics:
         self.data = hm.model.createData()
         self.names = list(frames)
         self.frame_ids = {name: hm.frame_id(name) for name in frames}
+        self.parent_joint = {name: self.model.frames[fid].parentJoint for name, fid in self.frame_ids.items()}
         self._a0 = np.zeros(hm.model.nv)
         # column selector/sign: pinocchio velocity columns -> thesis joint columns
         self.jcols = hm.theta_v_idx
         self.jsign = hm.theta_sign
+        # the same on [J | drift] (6 x (nv + 1)): the drift rides along as one more column, sign +1
+        self._motion_cols = np.append(self.jcols, hm.model.nv)
+        self._motion_sign = np.append(self.jsign, 1.0)
+        # per frame, a preallocated [J | drift] buffer, rewritten on the frame's first read after an update
+        self._motion_buf = {name: np.zeros((6, hm.model.nv + 1)) for name in frames}
         self._data: pin.Data = self.data
-        self._states: dict[str, FrameState] = {}
+        self._placements: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._velocities: dict[str, np.ndarray] = {}
+        self._motions: dict[str, np.ndarray] = {}
         self._reduced: dict[tuple[str, str, str], tuple[np.ndarray, np.ndarray]] = {}
-        self._weld_cols: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data | None = None) -> None:
         """Set the state (q, v).  ``data`` may be a pinocchio Data that already holds
@@ -86,34 +94,59 @@ class TaskKinematics:
             pin.forwardKinematics(self.model, data, q, v, self._a0)
             pin.computeJointJacobians(self.model, data, q)
         self._data = data
-        self._states = {}
+        self._placements = {}
+        self._velocities = {}
+        self._motions = {}
         self._reduced = {}
-        self._weld_cols = {}
+
+    def placement(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(origin position (3,), orientation (3x3)) of a registered frame, world frame (cached copies)."""
+        hit = self._placements.get(name)
+        if hit is None:
+            M = pin.updateFramePlacement(self.model, self._data, self.frame_ids[name])
+            hit = self._placements[name] = (M.translation.copy(), M.rotation.copy())
+        return hit
+
+    def velocity(self, name: str) -> np.ndarray:
+        """[linear; angular] velocity (6,) of a registered frame, LOCAL_WORLD_ALIGNED (cached)."""
+        hit = self._velocities.get(name)
+        if hit is None:
+            hit = self._velocities[name] = pin.getFrameVelocity(self.model, self._data, self.frame_ids[name],
+                                                                LWA).vector
+        return hit
+
+    def motion(self, name: str) -> np.ndarray:
+        """[J | drift] (6 x (nv + 1)) of a registered frame, LOCAL_WORLD_ALIGNED: the frame Jacobian and, as the
+        last column, the classical acceleration at zero generalized acceleration (cached)."""
+        hit = self._motions.get(name)
+        if hit is None:
+            model, data, fid = self.model, self._data, self.frame_ids[name]
+            hit = self._motion_buf[name]
+            hit[:, :-1] = pin.getFrameJacobian(model, data, fid, LWA)
+            hit[:, -1] = pin.getFrameClassicalAcceleration(model, data, fid, LWA).vector
+            self._motions[name] = hit
+        return hit
 
     def state(self, name: str) -> FrameState:
-        """World-frame state of a registered frame at the current state (cached)."""
-        st = self._states.get(name)
-        if st is None:
-            model, data, fid = self.model, self._data, self.frame_ids[name]
-            M = pin.updateFramePlacement(model, data, fid)
-            st = FrameState(p=M.translation.copy(), R=M.rotation.copy(), v=pin.getFrameVelocity(model, data, fid, LWA).vector,
-                            J=pin.getFrameJacobian(model, data, fid, LWA),
-                            drift=pin.getFrameClassicalAcceleration(model, data, fid, LWA).vector)
-            self._states[name] = st
-        return st
+        """World-frame state of a registered frame at the current state (built from the cached quantities)."""
+        p, R = self.placement(name)
+        JD = self.motion(name)
+        return FrameState(p=p, R=R, v=self.velocity(name), J=JD[:, :-1], drift=JD[:, -1])
 
     @property
     def states(self) -> dict[str, FrameState]:
         """Every registered frame's state (reads the frames not read yet)."""
         return {name: self.state(name) for name in self.names}
 
-    def _weld(self, weld: str) -> tuple[np.ndarray, np.ndarray]:
-        """The weld's joint-column Jacobian (6 x 26, pinocchio signs) and drift (cached)."""
-        hit = self._weld_cols.get(weld)
-        if hit is None:
-            st = self.state(weld)
-            hit = self._weld_cols[weld] = (st.J[:, self.jcols], st.drift)
-        return hit
+    def _task_motion(self, point: str, body: str) -> np.ndarray:
+        """[J | drift] of [linear motion of ``point``; angular motion of ``body``].  Frames on one joint share
+        the angular rows (the joint's angular velocity/acceleration), so then it is ``point``'s own."""
+        TP = self.motion(point)
+        if self.parent_joint[point] == self.parent_joint[body]:
+            return TP
+        T = TP.copy()
+        T[3:] = self.motion(body)[3:]
+        return T
 
     def reduce_pair(self, point: str, body: str, weld: str) -> tuple[np.ndarray, np.ndarray]:
         """Joint-space Jacobian (6 x 26, thesis order/sign) and drift (6,) of [linear motion of the origin of
@@ -123,19 +156,17 @@ class TaskKinematics:
         hit = self._reduced.get(key)
         if hit is not None:
             return hit
-        Jw, dw = self._weld(weld)
-        sp, sb, sw = self.state(point), self.state(body), self.state(weld)
-        S = skew(sw.p - sp.p)  # J_b J_Wb^-1 = [[I, S], [0, I]]
-        cols = self.jcols
-        J = np.empty((6, cols.size))
-        J[:3] = sp.J[:3, cols] - Jw[:3] - S @ Jw[3:]
-        J[3:] = sb.J[3:, cols] - Jw[3:]
-        J *= self.jsign
-        drift = np.empty(6)
-        drift[:3] = sp.drift[:3] - dw[:3] - S @ dw[3:]
-        drift[3:] = sb.drift[3:] - dw[3:]
-        self._reduced[key] = (J, drift)
-        return J, drift
+        W = self.motion(weld)
+        # J_red = [J_t,lin - J_W,lin - [p_W - p_t]x J_W,ang ; J_t,ang - J_W,ang] (module docstring), applied to
+        # the Jacobian columns and the drift column at once
+        D = self._task_motion(point, body) - W
+        S = skew(self.placement(weld)[0] - self.placement(point)[0])
+        D[:3, :-1] -= S @ W[3:, :-1]
+        D[:3, -1] -= S @ W[3:, -1]  # matrix-vector product apart: the rounding of the original drift formula
+        red = D[:, self._motion_cols]
+        red *= self._motion_sign
+        hit = self._reduced[key] = (red[:, :-1], red[:, -1])
+        return hit
 
     def reduce(self, task: str, weld: str, rows: slice = slice(0, 6)) -> tuple[np.ndarray, np.ndarray]:
         """Joint-space Jacobian (m x 26, thesis order/sign) and drift (m,) of ``task`` with the base eliminated
@@ -160,4 +191,4 @@ def cdiag_rate_matrix(R: np.ndarray) -> np.ndarray:
 def cdiag_second_derivative_bias(R: np.ndarray, w: np.ndarray) -> np.ndarray:
     """The part of d2/dt2 C_diag not linear in the angular acceleration: diag([w]x [w]x C), using
     [w]x [w]x = w w^T - |w|^2 I."""
-    return w * (w @ R) - (w @ w) * np.diagonal(R)
+    return w * (w @ R) - (w @ w) * R.diagonal()

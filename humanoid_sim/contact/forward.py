@@ -177,7 +177,7 @@ class ContactDynamics:
             a = pin.aba(self.model, d, self._q, self._v, tau).copy()
             lam = np.zeros(0)
         # A rank-deficient J makes the LLT of J M^-1 J^T fail silently: catch it through the residual.
-        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(lam))) or (
+        if not (np.isfinite(a).all() and np.isfinite(lam).all()) or (
                 rows.m and np.max(np.abs(rows.J @ a + rows.rhs_shift)) > SINGULAR_TOL * (
                     1.0 + np.max(np.abs(rows.rhs_shift)))):
             raise SingularConstraintError(

@@ -222,7 +222,7 @@ def _solve_square(rows: ConstraintRows, act: np.ndarray, M: np.ndarray, h: np.nd
     Jw = J[:6]
     bMf = data.oMi[1].actInv(data.oMf[rows.frame_ids[0]])
     Jb_inv = bMf.toActionMatrix()                     # (Ad(fMb))^-1
-    if not np.all(np.isfinite(Jb_inv)):
+    if not np.isfinite(Jb_inv).all():
         raise SingularConstraintError(f"contact set {rows.contacts.name!r}: the weld's base block is "
                                       "singular") from None
     a[:6] = Jb_inv @ (-r[:6] - Jw[:, 6:] @ a[6:])
