@@ -153,3 +153,14 @@ def test_axes_carry_units_and_phase_shading(figures, run_npz: Path) -> None:
                 assert x0 == t0
                 assert tuple(colour[:3]) == rgb, f"{stem}: phase at t = {t0} shaded {colour[:3]}, want {rgb}"
         assert fig.axes[-1].get_xlabel() == "t [s]", stem
+
+
+def test_parallel_drawing_writes_the_same_files(run_npz: Path, tmp_path: Path) -> None:
+    """plot_all's worker processes produce byte-identical PNGs to drawing them all in this process."""
+    from humanoid_sim.plots import plot_all
+
+    serial = plot_all(run_npz, tmp_path / "serial", workers=1)
+    parallel = plot_all(run_npz, tmp_path / "parallel", workers=2)
+    assert [p.name for p in serial] == [p.name for p in parallel] and len(serial) >= 20
+    for a, b in zip(serial, parallel):
+        assert a.read_bytes() == b.read_bytes(), a.name
