@@ -446,3 +446,29 @@ def test_single_support_closed_form_equals_general_solution(hm: HumanoidModel, p
     assert _rel(fast.a, general.a) < 1e-10 and _rel(fast.tau, general.tau) < 1e-10
     assert _rel(fast.lam, general.lam) < 1e-10
     assert fast.dynamics_residual < 1e-8 and fast.constraint_residual < 1e-9
+
+
+@pytest.mark.parametrize("phase", PHASES, ids=lambda p: p.value)
+def test_log_arrays_equal_the_ground_reaction_objects(hm: HumanoidModel, phase: Phase) -> None:
+    """GroundReactionLog (what the simulator logs) fills the same numbers as ground_reactions (tested above
+    against the momentum law and the thesis split); bodies without ground contact keep their zero rows."""
+    from humanoid_sim.contact.wrenches import GroundReactionLog
+
+    rng = np.random.default_rng(600 + PHASES.index(phase))
+    cs = phase.contacts
+    q, anchors, v, tau = _state(hm, rng, cs)
+    res = ContactDynamics(hm.model).forward(cs, anchors, q, v, tau)
+    frames = ("O_1", "O_2", "O_3", "O_4")
+    bf, bm = np.zeros((4, 3)), np.zeros((4, 3))
+    fw, cop = np.zeros((2, 6)), np.zeros((2, 3))
+    GroundReactionLog(hm.model, FEET, frames)(q, v, res.a, cs, res.lam, bf, bm, fw, cop)
+    gr = ground_reactions(hm.model, q, v, res.a, cs, res.lam, FEET)
+    for i, frame in enumerate(frames):
+        expected = (gr.bodies[frame].force, gr.bodies[frame].moment) if frame in gr.bodies else (np.zeros(3),) * 2
+        # the same helpers on the same data: identical up to round-off of forces of order 1e2-1e3 N
+        np.testing.assert_allclose(bf[i], expected[0], atol=1e-9)
+        np.testing.assert_allclose(bm[i], expected[1], atol=1e-9)
+    for i, foot in enumerate(FEET):
+        w = gr.feet[foot.name]
+        np.testing.assert_allclose(fw[i], np.concatenate([w.force, w.moment]), atol=1e-9)
+        np.testing.assert_allclose(cop[i], w.cop, atol=1e-12, equal_nan=True)

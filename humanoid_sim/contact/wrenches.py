@@ -112,13 +112,38 @@ def _own_newton_euler(model: pin.Model, data: pin.Data, jid: int) -> pin.Force:
     return data.oMi[jid].act(f)
 
 
-def _body_wrench(model: pin.Model, data: pin.Data, frame: str, fid: int, w_world: pin.Force) -> BodyWrench:
-    jid = model.frames[fid].parentJoint
+def _in_body_frame(model: pin.Model, data: pin.Data, jid: int, fid: int, w_world: pin.Force
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A world wrench about the origin on the body of joint ``jid`` in the thesis convention (K-7): force and
+    moment about the body's CoM, both in body frame ``fid``; also the CoM (world) and the frame's rotation."""
     com = data.oMi[jid].act(model.inertias[jid].lever)
-    R = data.oMf[fid].rotation
+    oMf = data.oMf[fid]  # held while its rotation is read (the array is a view into this object)
+    R = oMf.rotation.copy()
     f = w_world.linear
-    n_com = w_world.angular - np.cross(com, f)
-    return BodyWrench(frame=frame, force=R.T @ f, moment=R.T @ n_com, com=np.array(com), rotation=R.copy())
+    n_com = w_world.angular - _cross(com, f)
+    return R.T @ f, R.T @ n_com, com, R
+
+
+def _body_wrench(model: pin.Model, data: pin.Data, frame: str, fid: int, w_world: pin.Force) -> BodyWrench:
+    force, moment, com, R = _in_body_frame(model, data, model.frames[fid].parentJoint, fid, w_world)
+    return BodyWrench(frame=frame, force=force, moment=moment, com=np.array(com), rotation=R)
+
+
+def _foot_split(model: pin.Model, data: pin.Data, fid_main: int, main_local: np.ndarray | None,
+                fid_toe: int | None, toe_local: np.ndarray | None, toe_held: bool) -> tuple[pin.Force, pin.Force]:
+    """World wrenches (about the origin) of the ground on a foot's main body and toe body from the weld
+    multipliers (LOCAL, None where the body is not welded).  When the toe joint is locked with the main body
+    welded, the toe body carries exactly its own Newton-Euler wrench and the main body the rest (errata K-10)."""
+    w_main = _spatial_world(model, data, fid_main, main_local) if main_local is not None else pin.Force.Zero()
+    w_toe = pin.Force.Zero()
+    if fid_toe is not None:
+        if toe_local is not None:
+            w_toe = w_toe + _spatial_world(model, data, fid_toe, toe_local)
+        if toe_held:
+            own = _own_newton_euler(model, data, model.frames[fid_toe].parentJoint)
+            w_toe = w_toe + own   # K-10: toe body carries its own weight and inertia ...
+            w_main = w_main - own  # ... and the main body the rest of the foot load
+    return w_main, w_toe
 
 
 def centre_of_pressure(force: np.ndarray, moment_origin: np.ndarray) -> tuple[np.ndarray, float]:
@@ -145,22 +170,16 @@ def ground_reactions(model: pin.Model, q: np.ndarray, v: np.ndarray, a: np.ndarr
     welds = {f: lam[slices[f"weld:{f}"]].copy() for f in contacts.welds}
     bodies: dict[str, BodyWrench] = {}
     out_feet: dict[str, FootWrench] = {}
-    zero = pin.Force.Zero()
     for foot in feet:
         fid_main = _frame_id(model, foot.main_frame, contacts)
-        w_main = _spatial_world(model, data, fid_main, welds[foot.main_frame]) if foot.main_frame in welds \
-            else pin.Force(zero)
-        w_toe = pin.Force(zero)
-        if foot.toe_frame is not None:
-            fid_toe = _frame_id(model, foot.toe_frame, contacts)
-            if foot.toe_frame in welds:
-                w_toe = w_toe + _spatial_world(model, data, fid_toe, welds[foot.toe_frame])
-            toe_held = foot.toe_joint is not None and foot.toe_joint in contacts.locks
-            if toe_held and foot.main_frame in welds:
-                _joint_idx(model, foot.toe_joint, contacts)  # validates the name
-                own = _own_newton_euler(model, data, model.frames[fid_toe].parentJoint)
-                w_toe = w_toe + own   # K-10: toe body carries its own weight and inertia ...
-                w_main = w_main - own  # ... and the main body the rest of the foot load
+        fid_toe = _frame_id(model, foot.toe_frame, contacts) if foot.toe_frame is not None else None
+        toe_held = (fid_toe is not None and foot.toe_joint is not None and foot.toe_joint in contacts.locks
+                    and foot.main_frame in welds)
+        if toe_held:
+            _joint_idx(model, foot.toe_joint, contacts)  # validates the name
+        w_main, w_toe = _foot_split(model, data, fid_main, welds.get(foot.main_frame), fid_toe,
+                                    welds.get(foot.toe_frame) if fid_toe is not None else None, toe_held)
+        if fid_toe is not None:
             bodies[foot.toe_frame] = _body_wrench(model, data, foot.toe_frame, fid_toe, w_toe)
         bodies[foot.main_frame] = _body_wrench(model, data, foot.main_frame, fid_main, w_main)
         total = w_main + w_toe
@@ -173,8 +192,8 @@ def ground_reactions(model: pin.Model, q: np.ndarray, v: np.ndarray, a: np.ndarr
 class GroundReactionLog:
     """Ground reactions as plain arrays, for logging many instants cheaply.
 
-    The same quantities as :func:`ground_reactions` (same formulas, same order of operations), written into
-    preallocated rows instead of result objects: per body of ``body_frames`` the thesis wrench (F_0,k, M_0,k in
+    The same quantities as :func:`ground_reactions` (the same helpers: the K-10 foot split and the thesis body
+    frame transform), written into preallocated rows instead of result objects: per body of ``body_frames`` the thesis wrench (F_0,k, M_0,k in
     body frame k, zero for a body without ground contact), per foot the world wrench about the origin and the
     centre of pressure.  Frame and joint lookups are done once per contact set.
     """
@@ -208,16 +227,8 @@ class GroundReactionLog:
         return plan
 
     def _body(self, jid: int, fid: int, w: pin.Force, row: int | None, bf: np.ndarray, bm: np.ndarray) -> None:
-        if row is None:
-            return
-        data = self.data
-        com = data.oMi[jid].act(self.model.inertias[jid].lever)
-        oMf = data.oMf[fid]  # held while its rotation is read (the array is a view into this object)
-        R = oMf.rotation.copy()
-        f = w.linear
-        n_com = w.angular - _cross(com, f)
-        bf[row] = R.T @ f
-        bm[row] = R.T @ n_com
+        if row is not None:
+            bf[row], bm[row] = _in_body_frame(self.model, self.data, jid, fid, w)[:2]
 
     def __call__(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, contacts: ContactSet, lam: np.ndarray,
                  bf: np.ndarray, bm: np.ndarray, fw: np.ndarray, cop: np.ndarray) -> None:
@@ -227,17 +238,10 @@ class GroundReactionLog:
         pin.forwardKinematics(model, data, q, v, a)
         pin.updateFramePlacements(model, data)
         for i, (fid_main, main_sl, jid_main, row_main, toe) in enumerate(self._plan(contacts)):
-            w_main = _spatial_world(model, data, fid_main, lam[main_sl]) if main_sl is not None \
-                else pin.Force.Zero()
-            w_toe = pin.Force.Zero()
+            fid_toe, toe_sl, toe_held, jid_toe, row_toe = toe if toe is not None else (None, None, False, 0, None)
+            w_main, w_toe = _foot_split(model, data, fid_main, lam[main_sl] if main_sl is not None else None,
+                                        fid_toe, lam[toe_sl] if toe_sl is not None else None, toe_held)
             if toe is not None:
-                fid_toe, toe_sl, toe_held, jid_toe, row_toe = toe
-                if toe_sl is not None:
-                    w_toe = w_toe + _spatial_world(model, data, fid_toe, lam[toe_sl])
-                if toe_held:
-                    own = _own_newton_euler(model, data, jid_toe)
-                    w_toe = w_toe + own   # K-10: toe body carries its own weight and inertia ...
-                    w_main = w_main - own  # ... and the main body the rest of the foot load
                 self._body(jid_toe, fid_toe, w_toe, row_toe, bf, bm)
             self._body(jid_main, fid_main, w_main, row_main, bf, bm)
             total = w_main + w_toe
