@@ -69,34 +69,28 @@ class Actuators:
         spec = hm.spec
         self.limits = np.array([float(spec.actuators[g.name]["limit"]) for g in GROUPS for _ in g.T])
         model = hm.model
-        # Per thesis joint (group order): pinocchio joint, its axis column, v index, sign, group, T rows.
-        jids, axes, vidx, signs = [], [], [], []
+        # Per thesis joint (group order): v index and sign (q = sign * theta).
+        vidx, signs = [], []
         self._groups = []  # (T rows, comps, higher-body joint id, slice into the joint arrays, tree joint id,
         #                    higher_is_parent)
         row = 0
         for g in GROUPS:
             rows = list(range(row, row + len(g.T)))
             row += len(g.T)
-            start = len(jids)
+            start = len(vidx)
             for th in g.thetas:
                 i = hm.theta_index(th)
-                jid = model.getJointId(th)
-                jids.append(jid)
-                axes.append("XYZ".index(model.joints[jid].shortname()[-1]))
                 vidx.append(int(hm.theta_v_idx[i]))
                 signs.append(float(hm.theta_sign[i]))
             higher_jid = model.frames[hm.frame_id(f"O_{g.higher}")].parentJoint
-            self._groups.append((rows, list(g.comps), higher_jid, slice(start, len(jids)),
+            self._groups.append((rows, list(g.comps), higher_jid, slice(start, len(vidx)),
                                  model.getJointId(g.tree_joint), g.higher_is_parent))
-        self._jids = jids
-        self._axes = np.array(axes)
         self._vidx = np.array(vidx)
         self._signs = np.array(signs)
-        self._higher_jids = [grp[2] for grp in self._groups]
         # The joint axes are read from the world joint Jacobian (angular rows of a revolute joint's column = its
         # world axis), the higher bodies' rotations once per distinct body.  Revolute and spherical groups are
         # batched by components; the universal shoulders (two components) are read off the RNEA joint force.
-        self._hj_unique = sorted(set(self._higher_jids))
+        self._hj_unique = sorted({grp[2] for grp in self._groups})
         batches: dict[tuple[int, ...], list[int]] = {}
         self._moment_groups = []
         for gi, (rows, comps, hj, sl, _, _) in enumerate(self._groups):

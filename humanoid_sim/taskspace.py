@@ -133,11 +133,6 @@ class TaskKinematics:
         JD = self.motion(name)
         return FrameState(p=p, R=R, v=self.velocity(name), J=JD[:, :-1], drift=JD[:, -1])
 
-    @property
-    def states(self) -> dict[str, FrameState]:
-        """Every registered frame's state (reads the frames not read yet)."""
-        return {name: self.state(name) for name in self.names}
-
     def _task_motion(self, point: str, body: str) -> np.ndarray:
         """[J | drift] of [linear motion of ``point``; angular motion of ``body``].  Frames on one joint share
         the angular rows (the joint's angular velocity/acceleration), so then it is ``point``'s own."""

@@ -48,7 +48,6 @@ PARTS = {
     "controller": [("humanoid_sim/command.py", "compute")],
     "dynamics": [("humanoid_sim/contact/forward.py", "prepare"), ("humanoid_sim/contact/forward.py", "inverse_prepared"),
                  ("humanoid_sim/contact/forward.py", "forward_prepared"),
-                 ("humanoid_sim/contact/forward.py", "result_from_inverse"),
                  ("humanoid_sim/actuators.py", "thesis_torques"), ("humanoid_sim/actuators.py", "torque_map")],
     "integrator": [("humanoid_sim/simulate.py", "project_on_support"), ("pinocchio", "integrate")],
     "logging": [("humanoid_sim/simulate.py", "_stage0_record"), ("humanoid_sim/simulate.py", "_build_log")],

@@ -185,12 +185,6 @@ class ContactDynamics:
                 f"(rank J = {np.linalg.matrix_rank(rows.J)} of {rows.m} rows)")
         return self._result(rows, a, lam, tau)
 
-    def result_from_inverse(self, rows: ConstraintRows, inv: InverseResult) -> ForwardResult:
-        """The forward-dynamics result of the torques ``inv.tau`` without solving again: with the same model,
-        state and constraints the forward dynamics of an inverse-dynamics torque returns exactly ``inv.a`` and
-        ``inv.lam`` (tests/test_contact.py: test_inverse_then_forward_moving)."""
-        return self._result(rows, inv.a, inv.lam, inv.tau)
-
     def _result(self, rows: ConstraintRows, a: np.ndarray, lam: np.ndarray, tau: np.ndarray) -> ForwardResult:
         d = self.data
         return ForwardResult(contacts=rows.contacts, a=a, lam=lam, tau=tau.copy(), M_upper=d.M.copy(),

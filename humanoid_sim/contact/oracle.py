@@ -61,15 +61,22 @@ def oracle_terms(model: pin.Model, contacts: ContactSet, anchors: Anchors | None
     return OracleTerms(M=M, h=h, J=J, drift=drift, velocity=J @ v, error=err)
 
 
-def kkt_forward(model: pin.Model, contacts: ContactSet, anchors: Anchors | None, q: np.ndarray,
-                v: np.ndarray, tau: np.ndarray, gains: Baumgarte) -> tuple[np.ndarray, np.ndarray]:
-    """(a, lambda) from the dense KKT system ``M a - J^T lam = tau - h``, ``J a = -(Jdot v + Kd J v + Kp e)``."""
-    t = oracle_terms(model, contacts, anchors, q, v)
-    nv, m = model.nv, contacts.n_rows
+def _kkt_matrix(t: OracleTerms) -> np.ndarray:
+    """[[M, -J^T], [J, 0]]: the dense KKT matrix shared by the forward and the impulse solves."""
+    nv, m = t.M.shape[0], t.J.shape[0]
     K = np.zeros((nv + m, nv + m))
     K[:nv, :nv] = t.M
     K[:nv, nv:] = -t.J.T
     K[nv:, :nv] = t.J
+    return K
+
+
+def kkt_forward(model: pin.Model, contacts: ContactSet, anchors: Anchors | None, q: np.ndarray,
+                v: np.ndarray, tau: np.ndarray, gains: Baumgarte) -> tuple[np.ndarray, np.ndarray]:
+    """(a, lambda) from the dense KKT system ``M a - J^T lam = tau - h``, ``J a = -(Jdot v + Kd J v + Kp e)``."""
+    t = oracle_terms(model, contacts, anchors, q, v)
+    nv = model.nv
+    K = _kkt_matrix(t)
     rhs = np.concatenate([tau - t.h, -(t.drift + gains.kd * t.velocity + gains.kp * t.error)])
     sol = np.linalg.solve(K, rhs)
     return sol[:nv], sol[nv:]
@@ -80,9 +87,6 @@ def kkt_impulse(model: pin.Model, contacts: ContactSet, q: np.ndarray, v_minus: 
     """Perfectly inelastic impact: ``M (v+ - v-) = J^T Lambda``, ``J v+ = 0``; returns (v+, Lambda (N s))."""
     t = oracle_terms(model, contacts, None, q, v_minus)
     nv, m = model.nv, contacts.n_rows
-    K = np.zeros((nv + m, nv + m))
-    K[:nv, :nv] = t.M
-    K[:nv, nv:] = -t.J.T
-    K[nv:, :nv] = t.J
+    K = _kkt_matrix(t)
     sol = np.linalg.solve(K, np.concatenate([t.M @ v_minus, np.zeros(m)]))
     return sol[:nv], sol[nv:]
