@@ -50,6 +50,7 @@ from humanoid_sim.contact.wrenches import GroundReactionLog
 from humanoid_sim.impact import touchdown
 from humanoid_sim.initial import initial_configuration
 from humanoid_sim.integrator import RungeKutta
+from humanoid_sim import kernel as _kernel
 from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import FOOT_SPECS, Phase, SwitchThresholds
 from humanoid_sim.results import SimLog
@@ -91,7 +92,9 @@ def _unwrap_to(angle: float, ref: float) -> float:
 class Simulator:
     """Runs one scenario on the Pinocchio fast path."""
 
-    def __init__(self, hm: HumanoidModel, scenario: Scenario) -> None:
+    def __init__(self, hm: HumanoidModel, scenario: Scenario, compiled: bool | None = None) -> None:
+        """``compiled``: evaluate single-support stages with the compiled kernel (:mod:`humanoid_sim.kernel`);
+        None = whenever numba is installed, False = always the NumPy reference path."""
         self.hm = hm
         self.sc = scenario
         self.model = hm.model
@@ -117,6 +120,16 @@ class Simulator:
         self._w_tau = np.full(hm.model.nv, W_TAU_DSP)
         self._w_lam = {p: np.full(p.contacts.n_rows, W_LAMBDA_DSP) for p in Phase}
         self._reactions = GroundReactionLog(hm.model, FEET, BODY_FRAMES)
+        if compiled is None:
+            compiled = _kernel.AVAILABLE
+        if compiled and not _kernel.AVAILABLE:
+            raise RuntimeError("the compiled kernel needs numba, which is not installed (pip install numba)")
+        self.kernel = None
+        if compiled:
+            from humanoid_sim.kernel.stage import SSPKernel
+            self.kernel = SSPKernel(hm, self.cmd, self.act, self.dyn.gains)
+            self._kdata = hm.model.createData()
+        self._no_sat = np.zeros(26, dtype=bool)
 
     # ------------------------------------------------------------------ one stage
     def _references(self, k: int, t: float) -> tuple[TaskReference, TaskReference | None]:
@@ -138,6 +151,15 @@ class Simulator:
         self.stage_evals += 1
         contacts = phase.contacts
         ref_a, ref_b = self._references(k, t)
+        if self.kernel is not None and not phase.is_double_support:
+            d, model = self._kdata, self.model
+            pin.computeJointJacobiansTimeVariation(model, d, q, v)
+            pin.crba(model, d, q)
+            pin.nonLinearEffects(model, d, q, v)
+            out = self.kernel.stage(phase, anchors, q, v, d, ref_a, ref_b)
+            if out.log[0] == 0.0:  # else saturated or a singular cost: the reference path handles the stage
+                return {"a": out.a, "lam": out.lam, "thdd_c": out.thdd_c, "T_cmd": out.T_cmd, "T": out.T_cmd,
+                        "sat": self._no_sat, "tau": out.tau, "kernel_log": out.log}
         rows = self.dyn.prepare(contacts, anchors, q, v)
         thdd_c = self.cmd.compute(phase.value, q, v, ref_a, ref_b, data=self.dyn.data)
         a_des = self.hm.v_from_theta_dot(thdd_c)
@@ -162,9 +184,14 @@ class Simulator:
         """What the log needs from the first stage of a step, read while the solver still holds that state:
         the evaluation's outputs, the weld drifts, the dynamics residual and the task frames' positions,
         orientations and the hip velocity."""
+        a, lam, tau = out["a"], out["lam"], out["tau"]
+        lg = out.get("kernel_log")
+        if lg is not None:  # the compiled stage computed the same quantities (layout: kernel.stage.StageOutput)
+            return (a, lam, out["thdd_c"], out["T_cmd"], out["T"], out["sat"], tau, lg[1], lg[2], lg[3], lg[4:7],
+                    lg[7:10], lg[10:19].reshape(3, 3), lg[19:22], lg[22:25], lg[25:34].reshape(3, 3),
+                    lg[34:43].reshape(3, 3))
         rows = self.dyn.rows(phase.contacts)
         d = self.dyn.data
-        a, lam, tau = out["a"], out["lam"], out["tau"]
         M = out["M"]  # the symmetric joint-space inertia of this state (from the upper triangle crba fills)
         residual = float(np.max(np.abs(M @ a + d.nle - tau - rows.J.T @ lam)))
         pos = float(np.max(rows.weld_position_error)) if rows.weld_position_error.size else 0.0
@@ -190,6 +217,7 @@ class Simulator:
         raw: list[tuple] = []   # per step: (t, k, phase, q, v, nominal references) + the stage-0 record
         stage0: list[tuple] = [()]
         fid_hip = self.fid["Pc_17"]
+        project = self.project_on_support if self.kernel is None else self.kernel.project
         completed, reason = False, ""
         steps = 0
         wall0 = time.perf_counter()
@@ -208,8 +236,7 @@ class Simulator:
                     reason = f"stopped at t = {t:.3f} s (requested stop time)"
                     break
                 k, phase = sel.k, sel.phase
-                q_new, v_new = self.rk.step(f, t, q, v, h,
-                                            lambda qs, vs: self.project_on_support(phase, anchors, qs, vs))
+                q_new, v_new = self.rk.step(f, t, q, v, h, lambda qs, vs: project(phase, anchors, qs, vs))
                 raw.append((t, k, phase, q, v, traj.sample_global(t), traj.hip_reference(k, t)[0]) + stage0[0])
                 q, v, t = q_new, v_new, t + h
                 steps += 1
@@ -297,12 +324,7 @@ class Simulator:
          toe_R, toe_L, R1, R2) = zip(*raw)
         Q, V, A = np.array(q), np.array(v), np.array(a)
         thesis = lambda X: hm.theta_sign * X[:, hm.theta_v_idx]  # noqa: E731 -- v-ordered arrays -> thesis
-        bf = np.zeros((n, 4, 3))
-        bm = np.zeros((n, 4, 3))
-        fw = np.zeros((n, 2, 6))
-        cop = np.full((n, 2, 3), np.nan)
-        for i in range(n):
-            self._reactions(Q[i], V[i], A[i], phase[i].contacts, lam[i], bf[i], bm[i], fw[i], cop[i])
+        bf, bm, fw, cop = self._reactions.batch(Q, V, A, [ph.contacts for ph in phase], lam)
         contact = np.array([[f in ph.stance_feet for f in ("R", "L")] for ph in phase])
         ftot = fw[:, :, :3].sum(axis=1)
         mtot = fw[:, :, 3:].sum(axis=1)

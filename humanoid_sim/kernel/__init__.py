@@ -1,0 +1,39 @@
+"""Compiled per-stage kernel of the simulator (numba), mirroring the NumPy reference path.
+
+The reference implementation of every formula is the readable NumPy/Pinocchio code in
+:mod:`humanoid_sim.command`, :mod:`humanoid_sim.contact` and :mod:`humanoid_sim.actuators`; it is what the
+thesis oracle and the independent checks (scipy minimisation, finite differences, MuJoCo) test.  Measured
+(``scripts/bench.py``), a single-support stage of that path costs ~300 us, of which Pinocchio's algorithms take
+~15 us: the rest is the overhead of ~150 small NumPy and binding calls.  This package computes the same stage in
+one compiled call:
+
+- Pinocchio still does the dynamics passes (``computeJointJacobiansTimeVariation``, ``crba``,
+  ``nonLinearEffects``) and the rare stages the kernel leaves to the reference path (double support, saturated
+  actuators);
+- the kernel does the glue: placements by forward kinematics of the (fixed, revolute + free-flyer) tree, frame
+  Jacobians and bias accelerations from Pinocchio's joint Jacobians, the controller's cost rows and normal
+  equations (thesis 5.1), the single-support inverse dynamics (5.2), the thesis actuator torques T and the
+  saturation check, the projection onto the support foot, and the quantities the log records.
+
+``tests/test_kernel.py`` checks every kernel output against the reference path at many states of real walks,
+and a whole walk against the reference walk.  Without numba installed the simulator uses the reference path
+(:data:`AVAILABLE` is then False).
+"""
+
+from __future__ import annotations
+
+try:  # pragma: no cover - exercised by whichever environment runs the tests
+    from numba import njit as _numba_njit
+
+    AVAILABLE = True
+except ImportError:  # pragma: no cover
+    _numba_njit = None
+    AVAILABLE = False
+
+
+def njit(fn):
+    """Compile ``fn`` with numba (nopython, cached on disk, no fastmath: IEEE results like NumPy's), or return it
+    unchanged when numba is missing (it is then never called on the hot path)."""
+    if _numba_njit is None:
+        return fn
+    return _numba_njit(cache=True, nogil=True)(fn)
