@@ -60,16 +60,26 @@ class RungeKutta:
             if i == 0:
                 qi, vi = q, v
             else:
-                dq = sum(aij * vj for aij, vj in zip(tab.a[i], vs) if aij != 0.0)
-                dv = sum(aij * aj for aij, aj in zip(tab.a[i], accs) if aij != 0.0)
+                dq = _combine(tab.a[i], vs)
+                dv = _combine(tab.a[i], accs)
                 qi = pin.integrate(self.model, q, h * dq)
                 vi = v + h * dv
                 if project is not None:
                     qi, vi = project(qi, vi)
             vs.append(vi)
             accs.append(f(t + ci * h, qi, vi, i))
-        q_new = pin.integrate(self.model, q, h * sum(bi * vi for bi, vi in zip(tab.b, vs)))
-        v_new = v + h * sum(bi * ai for bi, ai in zip(tab.b, accs))
+        q_new = pin.integrate(self.model, q, h * _combine(tab.b, vs))
+        v_new = v + h * _combine(tab.b, accs)
         if project is not None:
             q_new, v_new = project(q_new, v_new)
         return q_new, v_new
+
+
+def _combine(coeffs: tuple[float, ...], xs: list[np.ndarray]) -> np.ndarray:
+    """sum_j c_j x_j over the non-zero coefficients, accumulated left to right (the rounding of Python's
+    ``sum``, without its generator overhead)."""
+    out = None
+    for c, x in zip(coeffs, xs):
+        if c != 0.0:
+            out = c * x if out is None else out + c * x
+    return 0.0 * xs[0] if out is None else out

@@ -152,11 +152,7 @@ class Simulator:
         contacts = phase.contacts
         ref_a, ref_b = self._references(k, t)
         if self.kernel is not None and not phase.is_double_support:
-            d, model = self._kdata, self.model
-            pin.computeJointJacobiansTimeVariation(model, d, q, v)
-            pin.crba(model, d, q)
-            pin.nonLinearEffects(model, d, q, v)
-            out = self.kernel.stage(phase, anchors, q, v, d, ref_a, ref_b)
+            out = self.kernel.stage(phase, anchors, q, v, self._dynamics_pass(q, v), ref_a, ref_b)
             if out.log[0] == 0.0:  # else saturated or a singular cost: the reference path handles the stage
                 return {"a": out.a, "lam": out.lam, "thdd_c": out.thdd_c, "T_cmd": out.T_cmd, "T": out.T_cmd,
                         "sat": self._no_sat, "tau": out.tau, "kernel_log": out.log}
@@ -179,6 +175,15 @@ class Simulator:
             tau, a, lam = inv.tau, inv.a, inv.lam
         return {"a": a, "lam": lam, "thdd_c": thdd_c, "T_cmd": T_cmd, "T": T_sat, "sat": sat, "tau": tau,
                 "M": inv.M}
+
+    def _dynamics_pass(self, q: np.ndarray, v: np.ndarray) -> pin.Data:
+        """The Pinocchio passes the compiled stage needs at (q, v): joint Jacobians and their time derivative
+        (with placements and velocities), the joint-space inertia (upper triangle) and the nonlinear effects."""
+        d, model = self._kdata, self.model
+        pin.computeJointJacobiansTimeVariation(model, d, q, v)
+        pin.crba(model, d, q)
+        pin.nonLinearEffects(model, d, q, v)
+        return d
 
     def _stage0_record(self, phase: Phase, out: dict) -> tuple:
         """What the log needs from the first stage of a step, read while the solver still holds that state:

@@ -11,7 +11,11 @@ Prints one JSON object:
 - ``step_ms_median``: wall milliseconds per integration step (same runs);
 - ``oracle_real_time_factor``: the same for ``--engine thesis`` over the first ``--oracle-window`` seconds;
 - ``speedup_vs_oracle``: their ratio, both measured in this one process;
-- ``setup_s``: imports and model/scenario loading, reported separately;
+- ``compiled_kernel``: whether the fast engine ran its compiled single-support stage (numba installed), and
+  ``reference_path_real_time_factor``: the same walk on the NumPy reference path (``Simulator(compiled=False)``,
+  median of half the repeats), for comparison;
+- ``setup_s``: imports and model/scenario loading, reported separately; ``kernel_load_s``: loading the compiled
+  kernel from numba's disk cache (the very first run after an install compiles it: ~30 s);
 - ``breakdown``: fraction of the fast run's stepping time per part (trajectory, controller, dynamics, integrator,
   logging, other), from a cProfile run (profiling inflates the absolute time, not much the proportions).
 """
@@ -45,11 +49,13 @@ PARTS = {
     "trajectory": [("humanoid_sim/trajectory/generator.py", "sample_global"),
                    ("humanoid_sim/trajectory/generator.py", "hip_reference"),
                    ("humanoid_sim/trajectory/generator.py", "toe_reference")],
-    "controller": [("humanoid_sim/command.py", "compute")],
+    "controller": [("humanoid_sim/command.py", "compute"), ("humanoid_sim/kernel/stage.py", "controller")],
     "dynamics": [("humanoid_sim/contact/forward.py", "prepare"), ("humanoid_sim/contact/forward.py", "inverse_prepared"),
                  ("humanoid_sim/contact/forward.py", "forward_prepared"),
-                 ("humanoid_sim/actuators.py", "thesis_torques"), ("humanoid_sim/actuators.py", "torque_map")],
-    "integrator": [("humanoid_sim/simulate.py", "project_on_support"), ("pinocchio", "integrate")],
+                 ("humanoid_sim/actuators.py", "thesis_torques"), ("humanoid_sim/actuators.py", "torque_map"),
+                 ("humanoid_sim/simulate.py", "_dynamics_pass"), ("humanoid_sim/kernel/stage.py", "dynamics")],
+    "integrator": [("humanoid_sim/simulate.py", "project_on_support"), ("humanoid_sim/kernel/stage.py", "project"),
+                   ("pinocchio", "integrate")],
     "logging": [("humanoid_sim/simulate.py", "_stage0_record"), ("humanoid_sim/simulate.py", "_build_log")],
 }
 
@@ -91,6 +97,9 @@ def main(argv: list[str] | None = None) -> int:
     scenario = load_scenario(args.scenario)
     Simulator(hm, scenario)  # warm-up construction (trajectory, IK of the initial posture)
     setup_s = IMPORT_S + time.perf_counter() - t0
+    t0 = time.perf_counter()
+    Simulator(hm, scenario).run(t_end=0.05)  # loads the compiled kernel from numba's disk cache (compiles it once)
+    kernel_s = time.perf_counter() - t0
 
     walls, steps, sim_time, completed = [], [], 0.0, True
     for _ in range(args.repeats):
@@ -103,6 +112,14 @@ def main(argv: list[str] | None = None) -> int:
         completed = completed and res.completed
     wall = statistics.median(walls)
     rtf = sim_time / wall
+
+    ref_walls = []
+    for _ in range(max(1, args.repeats // 2)):
+        sim = Simulator(hm, scenario, compiled=False)
+        w0 = time.perf_counter()
+        ref_res = sim.run()
+        ref_walls.append(time.perf_counter() - w0)
+    ref_rtf = ref_res.sim_time / statistics.median(ref_walls)
 
     osim = ThesisSimulator(hm, load_scenario(args.scenario))
     w0 = time.perf_counter()
@@ -124,7 +141,10 @@ def main(argv: list[str] | None = None) -> int:
         "oracle_wall_time_s": round(owall, 3),
         "oracle_real_time_factor": round(ortf, 4),
         "speedup_vs_oracle": round(rtf / ortf, 1),
+        "compiled_kernel": bool(Simulator(hm, scenario).kernel is not None),
+        "reference_path_real_time_factor": round(ref_rtf, 2),
         "setup_s": round(setup_s, 3),
+        "kernel_load_s": round(kernel_s, 3),
         "breakdown": breakdown(hm, scenario, None),
     }
     print(json.dumps(out, indent=2))

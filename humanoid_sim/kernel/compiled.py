@@ -1,0 +1,722 @@
+"""The compiled numerics of the simulator's fast path (numba), in ONE module on purpose.
+
+numba caches compiled code on disk per source file and checks only that file's time stamp: a function compiled
+into another module's cache would keep running the old code of a helper edited here.  Keeping every jitted
+function of the package in this file makes any edit invalidate all of them.
+
+Kinematics of a free-flyer + axis-aligned revolute tree (conventions are Pinocchio's, tested against it in
+``tests/test_kernel.py``):
+
+- joint placements ``oMi[j] = oMi[parent] * jointPlacement[j] * M_j(q)``, M_j a rotation about the joint's x, y or z
+  axis (JointModelRX/RY/RZ) or, for the free flyer, the placement (position, quaternion x y z w) in q[:7];
+- ``J`` / ``dJ`` (6 x nv) are Pinocchio's WORLD joint Jacobians and their time derivative
+  (``computeJointJacobiansTimeVariation``): column c is the spatial motion [v_o; w] (linear part = velocity of the
+  body point at the world origin) of a unit rate of coordinate c, so the spatial velocity of a body is J v and its
+  spatial acceleration J a + dJ v over the columns that support it;
+- LOCAL_WORLD_ALIGNED rows of a frame at world position p: linear = velocity / classical acceleration of the frame
+  origin, angular = angular velocity / acceleration (world axes); LOCAL rows: the spatial motion resolved in the
+  frame, linear part at its origin.
+
+The single-support stage (thesis 5.1 command accelerations, 5.2 computed torque, eq. 4.69 actuator torques) mirrors
+the reference functions named in each docstring, formula for formula; the Python side is
+:mod:`humanoid_sim.kernel.stage`.
+
+All arrays are float64 unless stated; rotations are (3, 3) with columns the body axes in world coordinates;
+lengths in m, velocities in m/s and rad/s, accelerations in m/s^2 and rad/s^2, forces in N and N m.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from humanoid_sim.kernel import njit
+from humanoid_sim.kernel.tree import FREE_FLYER
+
+F_PC17, F_O17, F_TPR, F_TPL, F_O1, F_O2, F_O3, F_O4 = range(8)
+"""Rows of the frame arrays: the controller's task frames in ``command.TASK_FRAMES`` order."""
+LOG_SIZE = 45
+"""Floats of the per-stage log vector (layout in ``stage.StageOutput``)."""
+
+
+# ----------------------------------------------------------------------------------------------- kinematics
+@njit
+def mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """A B for small matrices (explicit loops: numba's ``@`` goes through BLAS, ~1 us per call at these sizes)."""
+    n, k = A.shape
+    m = B.shape[1]
+    out = np.zeros((n, m))
+    for i in range(n):
+        for j in range(m):
+            s = 0.0
+            for l in range(k):
+                s += A[i, l] * B[l, j]
+            out[i, j] = s
+    return out
+
+
+@njit
+def mtm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """A^T B for small matrices."""
+    k, n = A.shape
+    m = B.shape[1]
+    out = np.zeros((n, m))
+    for i in range(n):
+        for j in range(m):
+            s = 0.0
+            for l in range(k):
+                s += A[l, i] * B[l, j]
+            out[i, j] = s
+    return out
+
+
+@njit
+def mv(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """A x for a small matrix."""
+    n, k = A.shape
+    out = np.zeros(n)
+    for i in range(n):
+        s = 0.0
+        for l in range(k):
+            s += A[i, l] * x[l]
+        out[i] = s
+    return out
+
+
+@njit
+def mtv(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """A^T x for a small matrix."""
+    k, n = A.shape
+    out = np.zeros(n)
+    for i in range(n):
+        s = 0.0
+        for l in range(k):
+            s += A[l, i] * x[l]
+        out[i] = s
+    return out
+
+
+@njit
+def quat_to_rot(x: float, y: float, z: float, w: float) -> np.ndarray:
+    """Rotation matrix of the unit quaternion (x, y, z, w) (Eigen's toRotationMatrix)."""
+    tx, ty, tz = 2.0 * x, 2.0 * y, 2.0 * z
+    twx, twy, twz = tx * w, ty * w, tz * w
+    txx, txy, txz = tx * x, ty * x, tz * x
+    tyy, tyz, tzz = ty * y, tz * y, tz * z
+    R = np.empty((3, 3))
+    R[0, 0] = 1.0 - (tyy + tzz)
+    R[0, 1] = txy - twz
+    R[0, 2] = txz + twy
+    R[1, 0] = txy + twz
+    R[1, 1] = 1.0 - (txx + tzz)
+    R[1, 2] = tyz - twx
+    R[2, 0] = txz - twy
+    R[2, 1] = tyz + twx
+    R[2, 2] = 1.0 - (txx + tyy)
+    return R
+
+
+@njit
+def rot_to_quat(R: np.ndarray, out: np.ndarray) -> None:
+    """Quaternion (x, y, z, w) of a rotation matrix into ``out`` (Eigen's Quaternion(Matrix3) algorithm, the one
+    behind ``pin.SE3ToXYZQUAT``, so the sign convention is the same)."""
+    t = R[0, 0] + R[1, 1] + R[2, 2]
+    if t > 0.0:
+        s = math.sqrt(t + 1.0)
+        out[3] = 0.5 * s
+        s = 0.5 / s
+        out[0] = (R[2, 1] - R[1, 2]) * s
+        out[1] = (R[0, 2] - R[2, 0]) * s
+        out[2] = (R[1, 0] - R[0, 1]) * s
+    else:
+        i = 0
+        if R[1, 1] > R[0, 0]:
+            i = 1
+        if R[2, 2] > R[i, i]:
+            i = 2
+        j = (i + 1) % 3
+        k = (j + 1) % 3
+        s = math.sqrt(R[i, i] - R[j, j] - R[k, k] + 1.0)
+        out[i] = 0.5 * s
+        s = 0.5 / s
+        out[3] = (R[k, j] - R[j, k]) * s
+        out[j] = (R[j, i] + R[i, j]) * s
+        out[k] = (R[k, i] + R[i, k]) * s
+
+
+@njit
+def forward_kinematics(q: np.ndarray, parents: np.ndarray, axis: np.ndarray, idx_q: np.ndarray, jR: np.ndarray,
+                       jp: np.ndarray, R: np.ndarray, p: np.ndarray) -> None:
+    """World placements of all joints into R (nj, 3, 3) and p (nj, 3) (Pinocchio's oMi), without temporaries.
+
+    A revolute joint about axis a rotates the placement's columns b = a+1, c = a+2 (mod 3):
+    (jR Rot_a(t))[:, b] = cos t jR[:, b] + sin t jR[:, c], [:, c] = -sin t jR[:, b] + cos t jR[:, c]."""
+    B = np.empty((3, 3))
+    for r in range(3):
+        for k in range(3):
+            R[0, r, k] = 1.0 if r == k else 0.0
+        p[0, r] = 0.0
+    for j in range(1, parents.size):
+        Rp = R[parents[j]]
+        pp = p[parents[j]]
+        if axis[j] == FREE_FLYER:
+            i = idx_q[j]
+            Rl = quat_to_rot(q[i + 3], q[i + 4], q[i + 5], q[i + 6])
+            for r in range(3):  # jointPlacement * (quaternion, position): parent is the universe
+                for k in range(3):
+                    B[r, k] = jR[j, r, 0] * Rl[0, k] + jR[j, r, 1] * Rl[1, k] + jR[j, r, 2] * Rl[2, k]
+                p[j, r] = jp[j, r] + (jR[j, r, 0] * q[i] + jR[j, r, 1] * q[i + 1] + jR[j, r, 2] * q[i + 2])
+            for r in range(3):
+                for k in range(3):
+                    R[j, r, k] = B[r, k]
+            continue
+        a = axis[j]
+        b = (a + 1) % 3
+        c = (a + 2) % 3
+        t = q[idx_q[j]]
+        ct, st = math.cos(t), math.sin(t)
+        for r in range(3):
+            B[r, a] = jR[j, r, a]
+            B[r, b] = ct * jR[j, r, b] + st * jR[j, r, c]
+            B[r, c] = -st * jR[j, r, b] + ct * jR[j, r, c]
+        for r in range(3):
+            for k in range(3):
+                R[j, r, k] = Rp[r, 0] * B[0, k] + Rp[r, 1] * B[1, k] + Rp[r, 2] * B[2, k]
+            p[j, r] = pp[r] + (Rp[r, 0] * jp[j, 0] + Rp[r, 1] * jp[j, 1] + Rp[r, 2] * jp[j, 2])
+
+
+@njit
+def frame_placement(R: np.ndarray, p: np.ndarray, parent: int, fR: np.ndarray, fp: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation, position) of a frame with placement (fR, fp) in joint ``parent`` (Pinocchio's oMf)."""
+    Rj = R[parent]
+    return mm(Rj, fR), p[parent] + mv(Rj, fp)
+
+
+@njit
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b of 3-vectors."""
+    out = np.empty(3)
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+    return out
+
+
+@njit
+def spatial_motion(J: np.ndarray, dJ: np.ndarray, v: np.ndarray, support: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """World spatial velocity J v and bias acceleration dJ v (6,, [linear at the origin; angular]) of the body
+    whose supporting columns are ``support``."""
+    V = np.zeros(6)
+    A = np.zeros(6)
+    for c in range(v.size):
+        if support[c]:
+            for r in range(6):
+                V[r] += J[r, c] * v[c]
+                A[r] += dJ[r, c] * v[c]
+    return V, A
+
+
+@njit
+def frame_motion_lwa(J: np.ndarray, dJ: np.ndarray, v: np.ndarray, support: np.ndarray, pos: np.ndarray,
+                     out: np.ndarray) -> np.ndarray:
+    """[J | drift] (6 x (nv + 1)) of a frame at world position ``pos`` into ``out``, LOCAL_WORLD_ALIGNED:
+    the frame Jacobian and, as the last column, the classical acceleration at zero generalized acceleration.
+    Returns the frame's LOCAL_WORLD_ALIGNED velocity (6,)."""
+    nv = v.size
+    for c in range(nv):
+        if support[c]:
+            out[0, c] = J[0, c] + (J[4, c] * pos[2] - J[5, c] * pos[1])
+            out[1, c] = J[1, c] + (J[5, c] * pos[0] - J[3, c] * pos[2])
+            out[2, c] = J[2, c] + (J[3, c] * pos[1] - J[4, c] * pos[0])
+            out[3, c] = J[3, c]
+            out[4, c] = J[4, c]
+            out[5, c] = J[5, c]
+        else:
+            for r in range(6):
+                out[r, c] = 0.0
+    V, A = spatial_motion(J, dJ, v, support)
+    w = V[3:]
+    alpha = A[3:]
+    vel = np.empty(6)
+    vel[:3] = V[:3] + cross(w, pos)
+    vel[3:] = w
+    acc = A[:3] + cross(alpha, pos) + cross(w, vel[:3])
+    out[:3, nv] = acc
+    out[3:, nv] = alpha
+    return vel
+
+
+@njit
+def frame_motion_local(J: np.ndarray, dJ: np.ndarray, v: np.ndarray, support: np.ndarray, Rf: np.ndarray,
+                       pos: np.ndarray, Jout: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """LOCAL frame Jacobian (6 x nv) into ``Jout``; returns the LOCAL spatial velocity and the LOCAL spatial
+    acceleration at zero generalized acceleration (Pinocchio's getFrameVelocity / getFrameAcceleration, LOCAL)."""
+    RT = Rf.T.copy()
+    lin = np.empty(3)
+    ang = np.empty(3)
+    for c in range(v.size):
+        if support[c]:
+            ang[0], ang[1], ang[2] = J[3, c], J[4, c], J[5, c]
+            lin[0] = J[0, c] + (J[4, c] * pos[2] - J[5, c] * pos[1])
+            lin[1] = J[1, c] + (J[5, c] * pos[0] - J[3, c] * pos[2])
+            lin[2] = J[2, c] + (J[3, c] * pos[1] - J[4, c] * pos[0])
+            Jout[:3, c] = mv(RT, lin)
+            Jout[3:, c] = mv(RT, ang)
+        else:
+            for r in range(6):
+                Jout[r, c] = 0.0
+    V, A = spatial_motion(J, dJ, v, support)
+    vel = np.empty(6)
+    acc = np.empty(6)
+    vel[:3] = mv(RT, V[:3] + cross(V[3:], pos))
+    vel[3:] = mv(RT, V[3:])
+    acc[:3] = mv(RT, A[:3] + cross(A[3:], pos))
+    acc[3:] = mv(RT, A[3:])
+    return vel, acc
+
+
+@njit
+def log3(R: np.ndarray) -> np.ndarray:
+    """Rotation vector of R (rad), angle in [0, pi): w = theta / sin(theta) * vee(R - R^T) / 2 with theta from
+    atan2(|vee|, (tr R - 1) / 2), accurate for small angles (the welds' errors are <= 1e-6 rad)."""
+    s = np.empty(3)
+    s[0] = 0.5 * (R[2, 1] - R[1, 2])
+    s[1] = 0.5 * (R[0, 2] - R[2, 0])
+    s[2] = 0.5 * (R[1, 0] - R[0, 1])
+    sn = math.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
+    c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
+    theta = math.atan2(sn, c)
+    if sn < 1e-300:
+        return np.zeros(3)
+    return s * (theta / sn)
+
+
+_LOG6_TAYLOR = float(np.finfo(float).eps) ** (1.0 / 3.0)
+"""log6 uses its Taylor coefficients when tr R >= 3 - _LOG6_TAYLOR (angle below ~2.5e-3 rad), Pinocchio's switch
+(spatial/log.hxx): above it the closed form's 1 - cos(theta) has lost no more than ~1e-11 relative."""
+
+
+@njit
+def log6(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """SE(3) logarithm [v; w] (6,) of the placement (R, p) (Pinocchio's log6)."""
+    w = log3(R)
+    t2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    theta = math.sqrt(t2)
+    if R[0, 0] + R[1, 1] + R[2, 2] >= 3.0 - _LOG6_TAYLOR:
+        alpha = 1.0 - t2 / 12.0 - t2 * t2 / 720.0
+        beta = 1.0 / 12.0 + t2 / 720.0
+    else:
+        st, ct = math.sin(theta), math.cos(theta)
+        alpha = theta * st / (2.0 * (1.0 - ct))
+        beta = 1.0 / t2 - st / (2.0 * theta * (1.0 - ct))
+    out = np.empty(6)
+    out[:3] = alpha * p - 0.5 * cross(w, p) + (beta * (w[0] * p[0] + w[1] * p[1] + w[2] * p[2])) * w
+    out[3:] = w
+    return out
+
+
+@njit
+def action_matrix(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Ad(M) (6 x 6) of M = (R, p) acting on [linear; angular] motions: [[R, [p]x R], [0, R]]."""
+    A = np.zeros((6, 6))
+    A[:3, :3] = R
+    A[3:, 3:] = R
+    for c in range(3):
+        A[:3, 3 + c] = cross(p, R[:, c])
+    return A
+
+
+# ----------------------------------------------------------------------------------------------- small algebra
+@njit
+def _cholesky_solve(Z: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """x with Z x = g for symmetric positive definite Z (lower Cholesky factor, as LAPACK posv); NaNs when Z is
+    not positive definite (the caller reports it)."""
+    n = g.size
+    L = np.zeros((n, n))
+    for j in range(n):
+        s = Z[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return np.full(n, np.nan)
+        L[j, j] = np.sqrt(s)
+        for i in range(j + 1, n):
+            s = Z[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / L[j, j]
+    y = np.empty(n)
+    for i in range(n):
+        s = g[i]
+        for k in range(i):
+            s -= L[i, k] * y[k]
+        y[i] = s / L[i, i]
+    x = np.empty(n)
+    for i in range(n - 1, -1, -1):
+        s = y[i]
+        for k in range(i + 1, n):
+            s -= L[k, i] * x[k]
+        x[i] = s / L[i, i]
+    return x
+
+
+@njit
+def _solve3(B: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x with B x = b for a 3 x 3 B (Gaussian elimination, partial pivoting)."""
+    A = B.copy()
+    x = b.copy()
+    for c in range(3):
+        piv = c
+        for r in range(c + 1, 3):
+            if abs(A[r, c]) > abs(A[piv, c]):
+                piv = r
+        if piv != c:
+            for k in range(3):
+                A[c, k], A[piv, k] = A[piv, k], A[c, k]
+            x[c], x[piv] = x[piv], x[c]
+        for r in range(c + 1, 3):
+            f = A[r, c] / A[c, c]
+            for k in range(c, 3):
+                A[r, k] -= f * A[c, k]
+            x[r] -= f * x[c]
+    for c in range(2, -1, -1):
+        s = x[c]
+        for k in range(c + 1, 3):
+            s -= A[c, k] * x[k]
+        x[c] = s / A[c, c]
+    return x
+
+
+# ----------------------------------------------------------------------------------------------- controller
+@njit
+def _body_task(motion: np.ndarray, vel: np.ndarray, fpos: np.ndarray, fparent: np.ndarray, point: int, body: int,
+               weld: int, jcols: np.ndarray, jsign: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(J (6 x 26), drift (6,), velocity (6,)) of [linear motion of frame ``point``; angular motion of frame
+    ``body``] in thesis joint space, the base eliminated through the weld of frame ``weld``."""
+    nv = jcols.size + 6
+    W = motion[weld]
+    T = motion[point].copy()
+    v6 = vel[point].copy()
+    if fparent[point] != fparent[body]:
+        T[3:] = motion[body][3:]
+        v6[3:] = vel[body][3:]
+    D = T - W
+    d = fpos[weld] - fpos[point]  # S = [d]x: S x = d x x
+    for c in range(nv + 1):
+        wx, wy, wz = W[3, c], W[4, c], W[5, c]
+        D[0, c] -= d[1] * wz - d[2] * wy
+        D[1, c] -= d[2] * wx - d[0] * wz
+        D[2, c] -= d[0] * wy - d[1] * wx
+    J = np.empty((6, jcols.size))
+    for i in range(jcols.size):
+        J[:, i] = D[:, jcols[i]] * jsign[i]
+    return J, D[:, nv].copy(), v6
+
+
+@njit
+def _tracking_rows(A: np.ndarray, r: np.ndarray, J6: np.ndarray, drift6: np.ndarray, p: np.ndarray,
+                   v6: np.ndarray, R: np.ndarray, ref_p: np.ndarray, ref_v: np.ndarray, ref_R: np.ndarray,
+                   dt: float) -> None:
+    """The 12 rows (position 3, velocity 6, C_diag orientation 3) of one task body (eqs. 5.1-5.3, errata C-1)."""
+    h2 = 0.5 * dt * dt
+    A[0:3] = J6[:3] * h2
+    r[0:3] = ref_p - (p + v6[:3] * dt + drift6[:3] * h2)
+    A[3:9] = J6 * dt
+    r[3:9] = ref_v - (v6 + drift6 * dt)
+    w = v6[3:]
+    L = np.zeros((3, 3))  # d/dt C_diag = L w (taskspace.cdiag_rate_matrix)
+    L[0, 1], L[0, 2] = R[2, 0], -R[1, 0]
+    L[1, 0], L[1, 2] = -R[2, 1], R[0, 1]
+    L[2, 0], L[2, 1] = R[1, 2], -R[0, 2]
+    diag = np.empty(3)
+    for i in range(3):
+        diag[i] = R[i, i]
+    bias = w * mtv(R, w) - (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * diag  # diag([w]x [w]x C)
+    A[9:12] = mm(L, J6[3:]) * h2
+    pred = diag + mv(L, w) * dt + (mv(L, drift6[3:]) + bias) * h2
+    for i in range(3):
+        r[9 + i] = ref_R[i, i] - pred[i]
+
+
+@njit
+def _normal(A: np.ndarray, r: np.ndarray, w: np.ndarray, dZ: np.ndarray, dg: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """(Z, g) = (A^T W A + diag(dZ), A^T W r + dg) (``_CostRows.normal``)."""
+    WA = A * w[:, None]
+    Z = mtm(A, WA)
+    for i in range(dZ.size):
+        Z[i, i] += dZ[i]
+    return Z, mtv(WA, r) + dg
+
+
+@njit
+def _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, ref_a_v, ref_a_R, ref_b_p,
+                ref_b_v, ref_b_R, ip, fp_) -> np.ndarray:
+    """Command accelerations theta_ddot_c (26,) of a single-support phase (``CommandAccelerations.compute``, SSP
+    branch).  ``ip`` (int64): root weld frame, other toe point frame, other weld frame, stance toe, other toe,
+    k_toe, n_s, n_o, then xs (n_s), xo (n_o), upper joints (10).  ``fp_`` (float64): dt_a, dt_b, ha, hb, s_p, w_p,
+    s_v, w_v, theta0_toe, then wa_rows (12), wb_rows (12), dZ_a (n_s), dZ_b (n_o), W_q_a (n_s), W_q_b (n_o),
+    upper Wp, Wv, dt, den, dt2, dt3 (10 each)."""
+    root, toe_pt, other_weld, stance_toe, other_toe, k_toe, ns, no = (ip[0], ip[1], ip[2], ip[3], ip[4], ip[5],
+                                                                      ip[6], ip[7])
+    xs = ip[8:8 + ns]
+    xo = ip[8 + ns:8 + ns + no]
+    qu = ip[8 + ns + no:18 + ns + no]
+    dta, dtb, ha, hb, s_p, w_p, s_v, w_v, theta0_toe = (fp_[0], fp_[1], fp_[2], fp_[3], fp_[4], fp_[5], fp_[6],
+                                                        fp_[7], fp_[8])
+    o = 9
+    wa_rows = fp_[o:o + 12]
+    wb_rows = fp_[o + 12:o + 24]
+    o += 24
+    dZ_a = fp_[o:o + ns]
+    dZ_b = fp_[o + ns:o + ns + no]
+    Wq_a = fp_[o + ns + no:o + 2 * ns + no]
+    Wq_b = fp_[o + 2 * ns + no:o + 2 * ns + 2 * no]
+    o += 2 * (ns + no)
+    uWp, uWv, udt, uden, udt2, udt3 = (fp_[o:o + 10], fp_[o + 10:o + 20], fp_[o + 20:o + 30], fp_[o + 30:o + 40],
+                                       fp_[o + 40:o + 50], fp_[o + 50:o + 60])
+    qdd = np.zeros(26)
+    # step 1: stance-leg joints for Body 17 and its CoM (5.1.1.1.1)
+    J, drift, v6 = _body_task(motion, vel, fpos, fparent, F_PC17, F_O17, root, jcols, jsign)
+    Aa = np.zeros((12, ns))
+    ra = np.zeros(12)
+    Js = np.empty((6, ns))
+    for i in range(ns):
+        Js[:, i] = J[:, xs[i]]
+    _tracking_rows(Aa, ra, Js, drift, fpos[F_PC17], v6, fR[F_O17], ref_a_p, ref_a_v, ref_a_R, dta)
+    dg = np.empty(ns)
+    for i in range(ns):
+        dg[i] = Wq_a[i] * ha * -(th[xs[i]] + thd[xs[i]] * dta)
+    Z, g = _normal(Aa, ra, wa_rows, dZ_a, dg)
+    qdd_s = _cholesky_solve(Z, g)
+    for i in range(ns):
+        qdd[xs[i]] = qdd_s[i]
+    # step 2: swing-leg joints for the swing toe point and toe body, given step 1 (5.1.1.1.2)
+    J, drift, v6 = _body_task(motion, vel, fpos, fparent, toe_pt, other_weld, root, jcols, jsign)
+    drift = drift + Js_times(J, xs, qdd_s)
+    Ab = np.zeros((12, no))
+    rb = np.zeros(12)
+    Jo = np.empty((6, no))
+    for i in range(no):
+        Jo[:, i] = J[:, xo[i]]
+    _tracking_rows(Ab, rb, Jo, drift, fpos[toe_pt], v6, fR[other_weld], ref_b_p, ref_b_v, ref_b_R, dtb)
+    dg = np.empty(no)
+    for i in range(no):
+        dg[i] = Wq_b[i] * hb * -(th[xo[i]] + thd[xo[i]] * dtb)
+    th_toe = th[other_toe] + theta0_toe
+    dg[k_toe] += (w_p * s_p * -(th_toe + thd[other_toe] * s_v)) + (w_v * s_v * -thd[other_toe])
+    Z, g = _normal(Ab, rb, wb_rows, dZ_b, dg)
+    qdd_o = _cholesky_solve(Z, g)
+    for i in range(no):
+        qdd[xo[i]] = qdd_o[i]
+    qdd[stance_toe] = 0.0
+    for i in range(10):  # eq. 5.90 per upper-body joint
+        k = qu[i]
+        num = uWp[i] * th[k] * udt2[i] / 2 + uWp[i] * thd[k] * udt3[i] / 2 + uWv[i] * thd[k] * udt[i]
+        qdd[k] = -num / uden[i]
+    return qdd
+
+
+@njit
+def Js_times(J: np.ndarray, cols: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """J[:, cols] @ x."""
+    out = np.zeros(J.shape[0])
+    for i in range(cols.size):
+        out += J[:, cols[i]] * x[i]
+    return out
+
+
+# ----------------------------------------------------------------------------------------------- dynamics
+@njit
+def _contact_rows(J, dJ, v, q, support_w, Rf, pf, Ra, pa, lock_q, lock_v, lock_anchor, kp, kd
+                  ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Constraint Jacobian Jc (7 x nv: LOCAL weld rows, then the lock row), rhs shift r = Jdot v + Kd Jc v + Kp e
+    (7,), weld position and orientation errors (m, rad) (``ConstraintRows.evaluate``, one weld + one lock)."""
+    nv = v.size
+    Jc = np.zeros((7, nv))
+    vel, acc = frame_motion_local(J, dJ, v, support_w, Rf, pf, Jc[:6])
+    Jc[6, lock_v] = 1.0
+    e = log6(mtm(Ra, Rf), mtv(Ra, pf - pa))
+    r = np.empty(7)
+    for i in range(6):
+        r[i] = kd * vel[i]
+        r[i] += acc[i]
+        r[i] += kp * e[i]
+    r[6] = kd * v[lock_v]  # the lock row has no drift (its Jacobian is constant)
+    r[6] += kp * (q[lock_q] - lock_anchor)
+    dp = pf - pa
+    return Jc, r, np.sqrt(dp[0] * dp[0] + dp[1] * dp[1] + dp[2] * dp[2]), np.sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
+
+
+@njit
+def _inverse_square(Jc, r, M, h, a_des, Rb, pb, Rf, pf, lock_v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(a, tau, lam) of the single-support computed torque (``contact.inverse._solve_square``): free joints take
+    the desired accelerations, the weld fixes the base (J_Wb^-1 = Ad(bMf)), the lock row the locked joint."""
+    nv = a_des.size
+    a = a_des.copy()
+    a[lock_v] = -r[6]
+    Jb_inv = action_matrix(mtm(Rb, Rf), mtv(Rb, pf - pb))
+    a[:6] = mv(Jb_inv, -r[:6] - mv(Jc[:6, 6:], a[6:]))
+    b = mv(M, a) + h
+    lam_w = mtv(Jb_inv, b[:6])
+    g = b - mtv(Jc[:6], lam_w)
+    tau = np.zeros(nv)
+    tau[6:] = g[6:]
+    tau[lock_v] = 0.0
+    lam = np.empty(7)
+    lam[:6] = lam_w
+    lam[6] = g[lock_v]
+    return a, tau, lam
+
+
+@njit
+def _thesis_torques(J, dJ, v, a, tau, R, p, support, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity
+                    ) -> np.ndarray:
+    """T (26,, T-bar order) (``Actuators.thesis_torques``).  g1 (n1, 5) int: T row, v index, sign (+-1),
+    higher-joint slot, component of the one-component groups; g3 (n3, 10) int: 3 T rows, 3 v indices, 3 signs,
+    higher-joint slot; gs (2, 6) int: 2 T rows, 2 components, tree joint, higher-joint slot of the shoulders,
+    with ``arm_mass`` (2,), ``arm_lever`` (2, 3), ``arm_I`` (2, 3, 3) (inertia about the CoM, joint frame);
+    hj: joint ids of the higher bodies (slots)."""
+    T = np.zeros(26)
+    for i in range(g1.shape[0]):
+        row, vi, sg, slot, comp = g1[i, 0], g1[i, 1], g1[i, 2], g1[i, 3], g1[i, 4]
+        Rh = R[hj[slot]]
+        b = sg * (J[3, vi] * Rh[0, comp] + J[4, vi] * Rh[1, comp] + J[5, vi] * Rh[2, comp])
+        T[row] = tau[vi] / b
+    B = np.empty((3, 3))
+    rhs = np.empty(3)
+    for i in range(g3.shape[0]):
+        Rh = R[hj[g3[i, 9]]]
+        for k in range(3):
+            vi, sg = g3[i, 3 + k], g3[i, 6 + k]
+            for c in range(3):
+                B[k, c] = sg * (J[3, vi] * Rh[0, c] + J[4, vi] * Rh[1, c] + J[5, vi] * Rh[2, c])
+            rhs[k] = tau[vi]
+        x = _solve3(B, rhs)
+        for k in range(3):
+            T[g3[i, k]] = x[k]
+    for i in range(gs.shape[0]):  # the arm (a leaf body): its Newton-Euler wrench about the shoulder point
+        tj, slot = gs[i, 4], gs[i, 5]
+        Rt, pt = R[tj], p[tj]
+        V = np.zeros(6)
+        A = np.zeros(6)
+        for c in range(v.size):
+            if support[tj, c]:
+                for k in range(6):
+                    V[k] += J[k, c] * v[c]
+                    A[k] += J[k, c] * a[c] + dJ[k, c] * v[c]
+        w, alpha = V[3:], A[3:]
+        com = pt + mv(Rt, arm_lever[i])
+        vc = V[:3] + cross(w, com)
+        ac = A[:3] + cross(alpha, com) + cross(w, vc)
+        f = arm_mass[i] * (ac - gravity)
+        Iw = mm(mm(Rt, arm_I[i]), Rt.T)
+        n = mv(Iw, alpha) + cross(w, mv(Iw, w)) + cross(com - pt, f)  # moment on the arm from the trunk, about pt
+        m = mtv(R[hj[slot]], n)
+        T[gs[i, 0]] = m[gs[i, 2]]
+        T[gs[i, 1]] = m[gs[i, 3]]
+    return T
+
+
+# ----------------------------------------------------------------------------------------------- the stage
+@njit
+def ssp_controller(q, v, J, dJ, ref_a_p, ref_a_v, ref_a_R, ref_b_p, ref_b_v, ref_b_R, parents, axis, idx_q, jR, jp,
+                   support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0, ip, fp_, R, p, fR, fpos, motion, vel):
+    """Command accelerations theta_ddot_c (26,) of a single-support stage.
+
+    Inputs: the state (q, v); Pinocchio's WORLD joint Jacobians J, dJ at that state; the two task references; the
+    constant arrays of :class:`SSPKernel`.  Work buffers filled for :func:`ssp_dynamics`: joint placements R, p,
+    frame placements fR, fpos, frame [J | drift] ``motion`` and velocities ``vel`` (LOCAL_WORLD_ALIGNED)."""
+    forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
+    for i in range(fparent.size):
+        fR[i], fpos[i] = frame_placement(R, p, fparent[i], fRp[i], fpp[i])
+        vel[i] = frame_motion_lwa(J, dJ, v, support[fparent[i]], fpos[i], motion[i])
+    th = np.empty(26)
+    thd = np.empty(26)
+    for i in range(26):
+        th[i] = jsign[i] * q[theta_q[i]] - theta0[i]
+        thd[i] = jsign[i] * v[jcols[i]]
+    return _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, ref_a_v, ref_a_R, ref_b_p,
+                       ref_b_v, ref_b_R, ip, fp_)
+
+
+@njit
+def ssp_dynamics(q, v, J, dJ, M_upper, h, qdd, anchor_R, anchor_p, lock_anchor, support, fparent, jcols, jsign,
+                 weld, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, R, p, fR,
+                 fpos, vel):
+    """Computed torque of a single-support stage for the command accelerations ``qdd``: (a (nv,), lam (7,), T_cmd
+    (26,), tau (nv,), log (LOG_SIZE,)).  M_upper: Pinocchio's crba (upper triangle), h: nonLinearEffects; the work
+    buffers R ... vel as :func:`ssp_controller` left them."""
+    nv = v.size
+    a_des = np.zeros(nv)
+    for i in range(26):
+        a_des[jcols[i]] = jsign[i] * qdd[i]
+    M = M_upper.copy()
+    for i in range(nv):
+        for k in range(i):
+            M[i, k] = M_upper[k, i]
+    Jc, r, pos_err, ori_err = _contact_rows(J, dJ, v, q, support[fparent[weld]], fR[weld], fpos[weld], anchor_R,
+                                            anchor_p, lock_q, lock_v, lock_anchor, kp, kd)
+    a, tau, lam = _inverse_square(Jc, r, M, h, a_des, R[1], p[1], fR[weld], fpos[weld], lock_v)
+    T = _thesis_torques(J, dJ, v, a, tau, R, p, support, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity)
+    log = np.zeros(LOG_SIZE)
+    for i in range(26):
+        if T[i] > limits[i] or T[i] < -limits[i] or not np.isfinite(T[i]):
+            log[0] = 1.0
+    if not np.isfinite(qdd).all():
+        log[0] = -1.0  # a cost's normal matrix was not positive definite
+    res = mv(M, a) + h - tau - mtv(Jc, lam)
+    log[1], log[2], log[3] = pos_err, ori_err, np.max(np.abs(res))
+    log[4:7] = fpos[F_PC17]
+    log[7:10] = vel[F_PC17][:3]
+    log[10:19] = fR[F_O17].ravel()
+    log[19:22] = fpos[F_TPR]
+    log[22:25] = fpos[F_TPL]
+    log[25:34] = fR[F_O1].ravel()
+    log[34:43] = fR[F_O2].ravel()
+    return a, lam, T, tau, log
+
+
+@njit
+def project_on_support(q, v, anchor_R, anchor_p, lock_q, lock_v, lock_anchor, parents, axis, idx_q, idx_v, jR, jp,
+                       support, f_parent, f_R, f_p) -> tuple[np.ndarray, np.ndarray]:
+    """(q, v) with the support foot at its anchor and at rest (``Simulator.project_on_support``): toe lock at its
+    anchor angle with zero rate, base placement re-derived from the foot's anchor, base twist from the joint
+    rates through the foot's LOCAL Jacobian."""
+    q = q.copy()
+    v = v.copy()
+    q[lock_q] = lock_anchor
+    v[lock_v] = 0.0
+    nj = parents.size
+    R = np.empty((nj, 3, 3))
+    p = np.empty((nj, 3))
+    forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
+    Rf, pf = frame_placement(R, p, f_parent, f_R, f_p)
+    Rb = quat_to_rot(q[3], q[4], q[5], q[6])
+    pb = q[:3].copy()
+    X = mm(anchor_R, Rf.T)
+    Rn = mm(X, Rb)
+    q[:3] = anchor_p + mv(X, pb - pf)
+    quat = np.empty(4)
+    rot_to_quat(Rn, quat)
+    q[3:7] = quat
+    # LOCAL Jacobian of the foot frame times the joint rates (the joint columns do not depend on the base)
+    vj = np.zeros(3)
+    wj = np.zeros(3)
+    for j in range(2, nj):
+        iv = idx_v[j]
+        if support[f_parent, iv] and v[iv] != 0.0:
+            u = R[j][:, axis[j]]
+            wj += u * v[iv]
+            vj += cross(u, pf - p[j]) * v[iv]
+    lin = mtv(Rf, vj)
+    ang = mtv(Rf, wj)
+    Ad = action_matrix(mtm(Rb, Rf), mtv(Rb, pf - pb))
+    tw = np.empty(6)
+    tw[:3] = lin
+    tw[3:] = ang
+    v[:6] = -mv(Ad, tw)
+    return q, v
