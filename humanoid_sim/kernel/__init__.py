@@ -23,17 +23,8 @@ and a whole walk against the reference walk.  Without numba installed the simula
 from __future__ import annotations
 
 try:  # pragma: no cover - exercised by whichever environment runs the tests
-    from numba import njit as _numba_njit
+    import numba  # noqa: F401
 
     AVAILABLE = True
 except ImportError:  # pragma: no cover
-    _numba_njit = None
     AVAILABLE = False
-
-
-def njit(fn):
-    """Compile ``fn`` with numba (nopython, cached on disk, no fastmath: IEEE results like NumPy's), or return it
-    unchanged when numba is missing (it is then never called on the hot path)."""
-    if _numba_njit is None:
-        return fn
-    return _numba_njit(cache=True, nogil=True)(fn)

@@ -31,8 +31,21 @@ import math
 
 import numpy as np
 
-from humanoid_sim.kernel import njit
 from humanoid_sim.kernel.tree import FREE_FLYER
+
+try:
+    from numba import njit as _numba_njit
+except ImportError:  # pragma: no cover - the simulator then never calls this module
+    _numba_njit = None
+
+
+def njit(fn):
+    """Compile ``fn`` with numba (nopython, cached on disk, no fastmath, NumPy's error model: a division by zero
+    gives inf / nan as in the reference path instead of raising), or return it unchanged when numba is missing.
+    Defined here, not in a shared module, so that changing these options invalidates the disk cache too."""
+    if _numba_njit is None:
+        return fn
+    return _numba_njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 F_PC17, F_O17, F_TPR, F_TPL, F_O1, F_O2, F_O3, F_O4 = range(8)
 """Rows of the frame arrays: the controller's task frames in ``command.TASK_FRAMES`` order."""
