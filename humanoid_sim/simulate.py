@@ -55,7 +55,7 @@ from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import FOOT_SPECS, Phase, SwitchThresholds
 from humanoid_sim.results import SimLog
 # PhaseRecord and SimulationError are part of this module's interface (SimResult.phases, Simulator.run's failures)
-from humanoid_sim.selector import PhaseRecord, PhaseSelector, SimulationError
+from humanoid_sim.selector import PhaseRecord, PhaseSelector, SimulationError, all_finite
 from humanoid_sim.scenario import Scenario
 from humanoid_sim.trajectory import ReferenceTrajectory
 
@@ -247,7 +247,7 @@ class Simulator:
                 steps += 1
                 if progress is not None:
                     progress(t, k)
-                if np.isfinite(q).all():
+                if all_finite(q):
                     pin.forwardKinematics(self.model, self.data, q)
                     hip = pin.updateFramePlacement(self.model, self.data, fid_hip).translation.copy()
                 else:

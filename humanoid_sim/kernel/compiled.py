@@ -637,16 +637,19 @@ def _thesis_torques(J, dJ, v, a, tau, R, p, support, g1, g3, gs, hj, arm_mass, a
 # ----------------------------------------------------------------------------------------------- the stage
 @njit
 def ssp_controller(q, v, J, dJ, ref_a_p, ref_a_v, ref_a_R, ref_b_p, ref_b_v, ref_b_R, parents, axis, idx_q, jR, jp,
-                   support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0, ip, fp_, R, p, fR, fpos, motion, vel):
+                   support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0, ip, fp_, fneed, R, p, fR, fpos, motion,
+                   vel):
     """Command accelerations theta_ddot_c (26,) of a single-support stage.
 
     Inputs: the state (q, v); Pinocchio's WORLD joint Jacobians J, dJ at that state; the two task references; the
     constant arrays of :class:`SSPKernel`.  Work buffers filled for :func:`ssp_dynamics`: joint placements R, p,
-    frame placements fR, fpos, frame [J | drift] ``motion`` and velocities ``vel`` (LOCAL_WORLD_ALIGNED)."""
+    frame placements fR, fpos, and for the frames flagged in ``fneed`` (the ones this phase's tasks read) the frame
+    [J | drift] ``motion`` and velocities ``vel`` (LOCAL_WORLD_ALIGNED)."""
     forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
     for i in range(fparent.size):
         fR[i], fpos[i] = frame_placement(R, p, fparent[i], fRp[i], fpp[i])
-        vel[i] = frame_motion_lwa(J, dJ, v, support[fparent[i]], fpos[i], motion[i])
+        if fneed[i]:
+            vel[i] = frame_motion_lwa(J, dJ, v, support[fparent[i]], fpos[i], motion[i])
     th = np.empty(26)
     thd = np.empty(26)
     for i in range(26):
@@ -694,7 +697,7 @@ def ssp_dynamics(q, v, J, dJ, M_upper, h, qdd, anchor_R, anchor_p, lock_anchor, 
 
 
 @njit
-def project_on_support(q, v, anchor_R, anchor_p, lock_q, lock_v, lock_anchor, parents, axis, idx_q, idx_v, jR, jp,
+def project_on_support(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR, jp,
                        support, f_parent, f_R, f_p) -> tuple[np.ndarray, np.ndarray]:
     """(q, v) with the support foot at its anchor and at rest (``Simulator.project_on_support``): toe lock at its
     anchor angle with zero rate, base placement re-derived from the foot's anchor, base twist from the joint

@@ -124,13 +124,52 @@ class SSPKernel:
             if any(model.parents[j] == g[4] for j in range(model.njoints)):
                 raise ValueError(f"joint {model.names[g[4]]!r} of a universal actuator is not a leaf")
         self.gravity = np.array(model.gravity.linear, dtype=float)
-        self.limits = act.limits.astype(float)
+        self._limits = act.limits.astype(float)
         self._anchor_key: tuple | None = None
         nf = len(FRAMES)
         # work buffers shared by the controller and dynamics calls: R, p (joints), fR, fpos, motion, vel (frames)
         self._work = (np.empty((tr.nj, 3, 3)), np.empty((tr.nj, 3)), np.empty((nf, 3, 3)), np.empty((nf, 3)),
                       np.empty((nf, 6, tr.nv + 1)), np.empty((nf, 6)))
         self._anchor_val: tuple = ()
+        self._build_args()
+
+    @property
+    def limits(self) -> np.ndarray:
+        """Saturation limits of the thesis torques T (26,, N m) the stage checks: a copy of ``Actuators.limits``
+        taken at construction; assign a new array here to change them."""
+        return self._limits
+
+    @limits.setter
+    def limits(self, value: np.ndarray) -> None:
+        self._limits = np.asarray(value, dtype=float).copy()
+        self._build_args()
+
+    def _build_args(self) -> None:
+        """The constant trailing arguments of the compiled calls, per single-support phase."""
+        tr, w = self.tree, self._work
+        self._ctrl_args, self._dyn_args, self._proj_args = {}, {}, {}
+        for ph, (ip, fp_, weld, lock_q, lock_v, _, _) in self.phase.items():
+            self._ctrl_args[ph] = (tr.parents, tr.axis, tr.idx_q, tr.jR, tr.jp, tr.support, tr.fparent, tr.fR, tr.fp,
+                                   self.jcols, self.jsign, self.theta_q, self.theta0, ip, fp_,
+                                   self._motion_frames(ph), *w)
+            self._dyn_args[ph] = (tr.support, tr.fparent, self.jcols, self.jsign, weld, lock_q, lock_v, self.kp,
+                                  self.kd, self.g1, self.g3, self.gs, self.hj, self.arm_mass, self.arm_lever,
+                                  self.arm_I, self.gravity, self._limits, w[0], w[1], w[2], w[3], w[5])
+            self._proj_args[ph] = (lock_q, lock_v, tr.parents, tr.axis, tr.idx_q, tr.idx_v, tr.jR, tr.jp, tr.support,
+                                   tr.fparent[weld], tr.fR[weld], tr.fp[weld])
+        self._support_ssp = {ph: Phase.LFFSSP if ph.support_foot == "L" else Phase.RFFSSP for ph in Phase}
+
+    def _motion_frames(self, phase: Phase) -> np.ndarray:
+        """Which frames' [J | drift] and velocity the phase's controller reads: the hip CoM (also logged), the stance
+        weld, the swing toe point, and the task bodies when they sit on another joint than their task point."""
+        lay, fi, tr = LAYOUTS[phase.value], self.tree.frame_index, self.tree
+        need = np.zeros(len(FRAMES), dtype=np.bool_)
+        for point, body in (("Pc_17", "O_17"), (lay.other_toe_point, lay.other_weld)):
+            need[fi[point]] = True
+            if tr.fparent[fi[body]] != tr.fparent[fi[point]]:
+                need[fi[body]] = True
+        need[fi[lay.root_weld]] = True
+        return need
 
     def _anchor(self, phase: Phase, anchors: Anchors) -> tuple[np.ndarray, np.ndarray, float]:
         """(R, p, toe angle) of the support foot's anchors as arrays, re-read whenever the Anchors object, its
@@ -147,23 +186,15 @@ class SSPKernel:
 
     def controller(self, phase: Phase, q: np.ndarray, v: np.ndarray, data: pin.Data, ref_a, ref_b) -> np.ndarray:
         """theta_ddot_c (26,) at (q, v); ``data`` holds computeJointJacobiansTimeVariation at (q, v)."""
-        tr, w = self.tree, self._work
-        ip, fp_ = self.phase[phase][:2]
-        return ssp_controller(q, v, data.J, data.dJ, ref_a.p, ref_a.v, ref_a.R, ref_b.p, ref_b.v, ref_b.R, tr.parents,
-                              tr.axis, tr.idx_q, tr.jR, tr.jp, tr.support, tr.fparent, tr.fR, tr.fp, self.jcols,
-                              self.jsign, self.theta_q, self.theta0, ip, fp_, *w)
+        return ssp_controller(q, v, data.J, data.dJ, ref_a.p, ref_a.v, ref_a.R, ref_b.p, ref_b.v, ref_b.R,
+                              *self._ctrl_args[phase])
 
     def dynamics(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, data: pin.Data,
                  qdd: np.ndarray) -> tuple:
         """(a, lam, T_cmd, tau, log) of the computed torque for ``qdd`` right after :meth:`controller` at (q, v);
         ``data`` also holds crba and nonLinearEffects."""
-        tr = self.tree
-        _, _, weld, lock_q, lock_v, _, _ = self.phase[phase]
-        aR, ap, alock = self._anchor(phase, anchors)
-        return ssp_dynamics(q, v, data.J, data.dJ, data.M, data.nle, qdd, aR, ap, alock, tr.support, tr.fparent,
-                            self.jcols, self.jsign, weld, lock_q, lock_v, self.kp, self.kd, self.g1, self.g3, self.gs,
-                            self.hj, self.arm_mass, self.arm_lever, self.arm_I, self.gravity, self.limits, *self._work[:4],
-                            self._work[5])
+        return ssp_dynamics(q, v, data.J, data.dJ, data.M, data.nle, qdd, *self._anchor(phase, anchors),
+                            *self._dyn_args[phase])
 
     def stage(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, data: pin.Data, ref_a, ref_b
               ) -> StageOutput:
@@ -175,13 +206,5 @@ class SSPKernel:
 
     def project(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The compiled ``Simulator.project_on_support`` for the support foot of ``phase``."""
-        tr = self.tree
-        _, _, weld, lock_q, lock_v, _, _ = self.phase[_ssp_of(phase)]
-        aR, ap, alock = self._anchor(_ssp_of(phase), anchors)
-        return project_on_support(q, v, aR, ap, lock_q, lock_v, alock, tr.parents, tr.axis, tr.idx_q, tr.idx_v,
-                                  tr.jR, tr.jp, tr.support, tr.fparent[weld], tr.fR[weld], tr.fp[weld])
-
-
-def _ssp_of(phase: Phase) -> Phase:
-    """The single-support phase with the same support foot (the projection only needs the support foot)."""
-    return Phase.LFFSSP if phase.support_foot == "L" else Phase.RFFSSP
+        ssp = self._support_ssp[phase]
+        return project_on_support(q, v, *self._anchor(ssp, anchors), *self._proj_args[ssp])
