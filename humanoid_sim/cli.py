@@ -1,6 +1,6 @@
 """``walk``: run a scenario, save results and plots, optionally play it in meshcat.
 
-    python scripts/walk.py [SCENARIO] [--out DIR] [--engine pinocchio|thesis] [--until SECONDS]
+    python scripts/walk.py [SCENARIO] [--out DIR] [--engine pinocchio|thesis] [--no-kernel] [--until SECONDS]
                            [--no-plots] [--no-html] [--view]
 
 Exit status: 0 when the walk completes every planned phase, 1 when it fails (the reason is printed, the
@@ -29,6 +29,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=None, help="output folder (default: results/<scenario name>/)")
     p.add_argument("--engine", choices=("pinocchio", "thesis"), default="pinocchio",
                    help="dynamics engine: the fast Pinocchio path or the thesis's NumPy formulas (slow)")
+    p.add_argument("--no-kernel", action="store_true",
+                   help="run every stage on the NumPy reference path instead of the compiled kernel (about 3x "
+                        "slower; to try a change to the controller or dynamics code before porting it to "
+                        "humanoid_sim/kernel/compiled.py)")
     p.add_argument("--until", type=float, default=None, metavar="SECONDS",
                    help="stop the simulation at this time (s)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
@@ -77,7 +81,12 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
 
         sim = ThesisSimulator(hm, scenario)
     else:
-        sim = Simulator(hm, scenario)
+        from humanoid_sim import kernel
+
+        if not args.no_kernel and kernel.AVAILABLE and not kernel.cache_present() and not args.quiet:
+            print("walk.py: compiling the simulation kernel (first run after an install or an edit of "
+                  "humanoid_sim/kernel/compiled.py: ~30 s, cached for later runs)", file=sys.stderr)
+        sim = Simulator(hm, scenario, compiled=False if args.no_kernel else None)
     t_nominal = sim.traj.phases[-1].t_end
     bar = None
     progress = None
@@ -149,7 +158,9 @@ def _print_summary(s: dict, out: Path) -> None:
         "stopped" if s["reason"].startswith("stopped at") else "FAILED")
     print(f"{s['scenario']}: {status} -- {s['reason']}")
     print(f"  phases {s['phases_completed']}/{s['phases_planned']}, sim {s['sim_time_s']:.2f} s in "
-          f"{s['wall_time_s']:.2f} s wall (real-time factor {s['real_time_factor']:.1f})")
+          f"{s['wall_time_s']:.2f} s wall (real-time factor {s['real_time_factor']:.1f}"
+          + (f", {s['compiled_stages']} of {s['compiled_stages'] + s['reference_stages']} stages compiled)"
+             if "compiled_stages" in s else ")"))
     if "hip_com_error_rms_m" in s:
         peak = max(s["torque_peak_Nm"].items(), key=lambda kv: kv[1] or 0.0)
         td = s["toe_touchdown_error_max_m"]

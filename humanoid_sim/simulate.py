@@ -37,6 +37,7 @@ Decisions where the thesis is silent:
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -94,7 +95,8 @@ class Simulator:
 
     def __init__(self, hm: HumanoidModel, scenario: Scenario, compiled: bool | None = None) -> None:
         """``compiled``: evaluate single-support stages with the compiled kernel (:mod:`humanoid_sim.kernel`);
-        None = whenever numba is installed, False = always the NumPy reference path."""
+        None = whenever numba is installed and the kernel agrees with the reference path (:meth:`check_kernel`,
+        else a RuntimeWarning), True = required (RuntimeError otherwise), False = always the reference path."""
         self.hm = hm
         self.sc = scenario
         self.model = hm.model
@@ -117,19 +119,31 @@ class Simulator:
             jid = hm.model.getJointId(s.toe_joint)
             self._lock_idx[s.toe_joint] = (hm.model.idx_qs[jid], hm.model.idx_vs[jid])
         self.stage_evals = 0
+        self.compiled_evals = 0
         self._w_tau = np.full(hm.model.nv, W_TAU_DSP)
         self._w_lam = {p: np.full(p.contacts.n_rows, W_LAMBDA_DSP) for p in Phase}
         self._reactions = GroundReactionLog(hm.model, FEET, BODY_FRAMES)
+        explicit = compiled is not None
         if compiled is None:
             compiled = _kernel.AVAILABLE
         if compiled and not _kernel.AVAILABLE:
             raise RuntimeError("the compiled kernel needs numba, which is not installed (pip install numba)")
         self.kernel = None
+        self._no_sat = np.zeros(26, dtype=bool)
+        self._table: tuple = (None, None)
         if compiled:
             from humanoid_sim.kernel.stage import SSPKernel
             self.kernel = SSPKernel(hm, self.cmd, self.act, self.dyn.gains)
             self._kdata = hm.model.createData()
-        self._no_sat = np.zeros(26, dtype=bool)
+            problem = self.check_kernel()
+            if problem is not None:
+                self.kernel = None
+                msg = (f"the compiled stage kernel disagrees with the reference path ({problem}): the reference code "
+                       "(command.py, actuators.py, contact/) was probably changed without its compiled twin in "
+                       "humanoid_sim/kernel/compiled.py")
+                if explicit:
+                    raise RuntimeError(msg)
+                warnings.warn(msg + "; running on the reference path (about 3x slower)", RuntimeWarning, stacklevel=2)
 
     # ------------------------------------------------------------------ one stage
     def _references(self, k: int, t: float) -> tuple[TaskReference, TaskReference | None]:
@@ -149,13 +163,25 @@ class Simulator:
         inverse solution itself; otherwise the forward dynamics is solved for the saturated torques.
         """
         self.stage_evals += 1
-        contacts = phase.contacts
-        ref_a, ref_b = self._references(k, t)
         if self.kernel is not None and not phase.is_double_support:
-            out = self.kernel.stage(phase, anchors, q, v, self._dynamics_pass(q, v), ref_a, ref_b)
+            out = self.kernel.stage(phase, anchors, q, v, self._dynamics_pass(q, v), self._ssp_table(k), t)
             if out.log[0] == 0.0:  # else saturated or a singular cost: the reference path handles the stage
+                self.compiled_evals += 1
                 return {"a": out.a, "lam": out.lam, "thdd_c": out.thdd_c, "T_cmd": out.T_cmd, "T": out.T_cmd,
                         "sat": self._no_sat, "tau": out.tau, "kernel_log": out.log}
+        return self._evaluate_reference(k, phase, anchors, t, q, v)
+
+    def _ssp_table(self, k: int) -> np.ndarray:
+        """The reference table of single-support phase k for the kernel (cached; the cache is dropped whenever the
+        trajectory learns a landing)."""
+        if self._table[0] != k:
+            self._table = (k, self.traj.ssp_table(k))
+        return self._table[1]
+
+    def _evaluate_reference(self, k: int, phase: Phase, anchors, t: float, q: np.ndarray, v: np.ndarray) -> dict:
+        """:meth:`evaluate` on the NumPy/Pinocchio reference path."""
+        contacts = phase.contacts
+        ref_a, ref_b = self._references(k, t)
         rows = self.dyn.prepare(contacts, anchors, q, v)
         thdd_c = self.cmd.compute(phase.value, q, v, ref_a, ref_b, data=self.dyn.data)
         a_des = self.hm.v_from_theta_dot(thdd_c)
@@ -184,6 +210,38 @@ class Simulator:
         pin.crba(model, d, q)
         pin.nonLinearEffects(model, d, q, v)
         return d
+
+    def check_kernel(self, tol: float = 1e-8) -> str | None:
+        """Compare the compiled stage with the reference path at one deterministic state per single-support phase
+        (the initial posture with joint angles moved by ~0.02 rad and rates of ~0.1 rad/s, so that velocity terms
+        count); None when every output agrees to ``tol`` relative (the two agree to ~1e-13 when unmodified), else
+        what differs.  Guards against a reference formula edited without its compiled twin."""
+        rng = np.random.default_rng(20101)
+        q = self.q0.copy()
+        q[7:] += rng.normal(0.0, 0.02, self.model.nq - 7)
+        v = rng.normal(0.0, 0.1, self.model.nv)
+        for phase in (Phase.LFFSSP, Phase.RFFSSP):
+            k = next((i for i, ph in enumerate(self.traj.phases) if ph.name == phase.value), None)
+            if k is None:
+                continue
+            t = self.traj.phases[k].t_start + 0.4 * self.traj.phases[k].duration
+            anchors = record_anchors(self.model, q, phase.contacts)
+            out = self.kernel.stage(phase, anchors, q, v, self._dynamics_pass(q, v), self.traj.ssp_table(k), t)
+            try:
+                ref = self._evaluate_reference(k, phase, anchors, t, q, v)
+            except (ContactError, CommandError, np.linalg.LinAlgError):
+                continue  # no reference to compare with (e.g. all weights zero): the run reports that error itself
+            if out.saturated != bool(ref["sat"].any()):
+                return f"{phase.value}: saturation flags differ"
+            checks = [("theta_ddot_c", out.thdd_c), ("T_cmd", out.T_cmd)]
+            if not out.saturated:  # a saturated reference stage continues with the saturated torques
+                checks += [("a", out.a), ("lam", out.lam), ("tau", out.tau)]
+            for name, x in checks:
+                y = ref[name if name != "theta_ddot_c" else "thdd_c"]
+                err = float(np.max(np.abs(x - y))) / (1.0 + float(np.max(np.abs(y))))
+                if not err <= tol:
+                    return f"{phase.value}: {name} differs by {err:.2e} relative"
+        return None
 
     def _stage0_record(self, phase: Phase, out: dict) -> tuple:
         """What the log needs from the first stage of a step, read while the solver still holds that state:
@@ -270,6 +328,7 @@ class Simulator:
                     res = touchdown(self.model, q, v, phase, sc.simulation.impact_law, w_adj=sc.W_adj.get(key))
                     v = res.v_plus
                     traj.set_landing(swing, k, toe, R_toe)
+                    self._table = (None, None)
                 sel.advance(t, self._toe(q, traj.phases[k + 1].swing_foot))
                 anchors = record_anchors(self.model, q, sel.phase.contacts, previous=anchors)
         except (SimulationError, ContactError, CommandError, np.linalg.LinAlgError) as exc:
@@ -287,7 +346,8 @@ class Simulator:
                 completed, reason = False, f"interrupted by the user at t = {t:.3f} s"
         return SimResult(log=log, phases=records, phases_planned=n_phases, completed=completed, reason=reason,
                          sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps,
-                         stage_evaluations=self.stage_evals, extra={"nominal_end": nominal_end})
+                         stage_evaluations=self.stage_evals,
+                         extra={"nominal_end": nominal_end, "compiled_stages": self.compiled_evals})
 
     def project_on_support(self, phase: Phase, anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) with the support foot exactly at its anchor and at rest (see the module docstring).

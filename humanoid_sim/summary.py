@@ -32,6 +32,9 @@ def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, A
         "real_time_factor": _f(result.sim_time / result.wall_time) if result.wall_time > 0 else None,
         "steps": int(result.steps),
     }
+    if "compiled_stages" in result.extra:  # fast engine: how many stages ran compiled (kernel/), how many not
+        out["compiled_stages"] = int(result.extra["compiled_stages"])
+        out["reference_stages"] = int(result.stage_evaluations - result.extra["compiled_stages"])
     if n:
         e = np.linalg.norm(a["hip_p"] - a["hip_p_ref"], axis=1)
         ec = np.linalg.norm(a["hip_p"] - a["hip_p_ctrl_ref"], axis=1)

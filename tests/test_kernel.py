@@ -335,8 +335,7 @@ def stage_deviations(hm, walks):
             for i in np.flatnonzero(np.isin(arr["basic_phase"], [BASIC[Phase.LFFSSP], BASIC[Phase.RFFSSP]])):
                 ph, k, t, q, v, anchors = _state(hm, arr, i, dq, dv, rng)
                 keep.append(anchors)
-                ref_a, ref_b = sim._references(k, t)
-                ko = ker.stage(ph, anchors, q, v, _pin_data(model, q, v), ref_a, ref_b)
+                ko = ker.stage(ph, anchors, q, v, _pin_data(model, q, v), sim.traj.ssp_table(k), t)
                 ro = sim.evaluate(k, ph, anchors, t, q, v)
                 rec = sim._stage0_record(ph, ro)
                 lg = ko.log
@@ -447,7 +446,7 @@ def test_saturated_stages_fall_back_to_reference(hm, walks):
             out = sim_c.evaluate(k, ph, anchors, t, q, v)
             if ref["sat"].any():
                 n_sat += 1
-                ko = sim_c.kernel.stage(ph, anchors, q, v, _pin_data(hm.model, q, v), *sim_c._references(k, t))
+                ko = sim_c.kernel.stage(ph, anchors, q, v, _pin_data(hm.model, q, v), sim_c.traj.ssp_table(k), t)
                 assert ko.log[0] == 1.0 and ko.saturated
                 _assert_same_result(out, ref)
             else:
@@ -469,13 +468,13 @@ def test_constructed_saturation_falls_back_to_reference(hm, walks, phase):
     sim_ref = Simulator(hm, sc, compiled=False)
     sim_ref.traj = sim_ref0.traj
     sim_c = _compiled_twin(hm, sim_ref0, sc)
-    T = sim_c.kernel.stage(ph, anchors, q, v, _pin_data(hm.model, q, v), *sim_c._references(k, t)).T_cmd
+    T = sim_c.kernel.stage(ph, anchors, q, v, _pin_data(hm.model, q, v), sim_c.traj.ssp_table(k), t).T_cmd
     scale = 0.5 * np.max(np.abs(T) / sim_ref.act.limits)
     assert scale < 1.0  # the original limits hold here
     for s in (sim_ref, sim_c):
         s.act.limits = s.act.limits * scale
     sim_c.kernel.limits = sim_c.kernel.limits * scale
-    ko = sim_c.kernel.stage(ph, anchors, q, v, _pin_data(hm.model, q, v), *sim_c._references(k, t))
+    ko = sim_c.kernel.stage(ph, anchors, q, v, _pin_data(hm.model, q, v), sim_c.traj.ssp_table(k), t)
     assert ko.log[0] == 1.0
     ref = sim_ref.evaluate(k, ph, anchors, t, q, v)
     assert ref["sat"].any()
@@ -548,9 +547,12 @@ def test_whole_walk_compiled_equals_reference(sim1_walks):
     s_c = dict(_flatten(summarize(res_c, "sim1", "pinocchio")))
     s_r = dict(_flatten(summarize(res_r, "sim1", "pinocchio")))
     assert s_c.keys() == s_r.keys()
+    # the stage counts of summary.json: what the kernel computed, and none on the reference path
+    assert s_c[".compiled_stages"] == calls["stage"] - calls["fallback"] and s_r[".compiled_stages"] == 0
+    assert s_c[".compiled_stages"] + s_c[".reference_stages"] == res_c.stage_evaluations
     worst, bad = 0.0, {}
     for key, ref in s_r.items():
-        if key in (".wall_time_s", ".real_time_factor"):
+        if key in (".wall_time_s", ".real_time_factor", ".compiled_stages", ".reference_stages"):
             continue
         val = s_c[key]
         if isinstance(ref, (bool, str)) or ref is None or val is None:
@@ -574,3 +576,73 @@ def test_compiled_without_numba_raises(hm, monkeypatch):
     with pytest.raises(RuntimeError, match="numba"):
         Simulator(hm, sc, compiled=True)
     assert Simulator(hm, sc).kernel is None
+
+
+# ----------------------------------------------------------------------------------------------- 8. self-check
+@needs_numba
+@pytest.mark.parametrize("name", ["sim1", "sim2", "sim3"])
+def test_self_check_passes_on_the_shipped_scenarios(hm, name):
+    """Simulator's start-up comparison of the kernel with the reference path finds no difference (at any tolerance
+    above round-off: 1e-12 here, the two agree to ~1e-15 at the check states)."""
+    sim = Simulator(hm, load_scenario(PARAMS / f"{name}.yaml"), compiled=True)
+    assert sim.kernel is not None
+    assert sim.check_kernel(tol=1e-12) is None
+
+
+@needs_numba
+@pytest.mark.parametrize("target", ["controller", "actuators"])
+def test_self_check_catches_an_edited_reference_formula(hm, monkeypatch, target):
+    """A reference formula changed by 0.1 % without its compiled twin (the upper-body law of eq. 5.90, or the
+    actuator torque map) makes the default simulator warn and run on the reference path, and an explicit
+    compiled=True refuse to start."""
+    from humanoid_sim import actuators, command
+
+    if target == "controller":
+        orig = command.CommandAccelerations.upper
+        monkeypatch.setattr(command.CommandAccelerations, "upper", lambda self, th, thd: 1.001 * orig(self, th, thd))
+    else:
+        orig_t = actuators.Actuators.thesis_torques
+        monkeypatch.setattr(actuators.Actuators, "thesis_torques",
+                            lambda self, *a, **k: 1.001 * orig_t(self, *a, **k))
+    sc = load_scenario(PARAMS / "sim1.yaml")
+    with pytest.warns(RuntimeWarning, match="disagrees with the reference path"):
+        sim = Simulator(hm, sc)
+    assert sim.kernel is None
+    with pytest.raises(RuntimeError, match="disagrees with the reference path"):
+        Simulator(hm, sc, compiled=True)
+
+
+# ----------------------------------------------------------------------------------------------- 9. references
+@needs_numba
+def test_ssp_references_equal_the_trajectory_queries(walks):
+    """ssp_references from ReferenceTrajectory.ssp_table equals hip_reference / toe_reference (swing foot) bit for
+    bit (same formulas, same operation order), in every single-support phase of sims 1-3 after their walks (so the
+    landing-adjusted swings too), at times before, inside and after the phase window (clamping) and on both sides of
+    the swing's t_z switch."""
+    from humanoid_sim.kernel.compiled import ssp_references
+
+    n = 0
+    for sim, _, _ in walks.values():
+        tr = sim.traj
+        for k, ph in enumerate(tr.phases):
+            if not ph.is_ssp:
+                continue
+            tab = tr.ssp_table(k)
+            for t in np.linspace(ph.t_start - 0.1, ph.t_end + 0.1, 61):
+                out = [np.empty(3), np.empty(6), np.empty((3, 3)), np.empty(3), np.empty(6), np.empty((3, 3))]
+                ssp_references(tab, t, t + 0.013, *out)
+                ref = list(tr.hip_reference(k, t)) + list(tr.toe_reference(k, t + 0.013, ph.swing_foot))
+                for x, y in zip(out, ref):
+                    np.testing.assert_array_equal(x, y)
+                n += 1
+    assert n > 1000
+
+
+def test_ssp_table_refuses_a_double_support_phase(walks):
+    """ssp_table names the phase when asked for a double support phase."""
+    from humanoid_sim.trajectory.generator import TrajectoryError
+
+    sim = next(iter(walks.values()))[0]
+    k = next(i for i, ph in enumerate(sim.traj.phases) if not ph.is_ssp)
+    with pytest.raises(TrajectoryError, match="not a single support phase"):
+        sim.traj.ssp_table(k)

@@ -258,3 +258,21 @@ def test_short_sim1_run_reports_the_contact_audit(tmp_path, hm, monkeypatch):
         outside += not (sole["heel_back_x"] <= x <= sole["toe_front_x"] and abs(y) <= sole["width"] / 2)
     assert c["per_phase"]["LFFSSP"]["cop_outside_fraction"]["L"] == pytest.approx(outside / len(rows), abs=1e-12)
     assert 0.0 <= c["zmp_outside_fraction"] <= 1.0
+
+
+def test_no_kernel_runs_every_stage_on_the_reference_path(tmp_path):
+    """--no-kernel: summary.json counts 0 compiled stages; the default run compiles the single-support stages
+    (when numba is installed) and both give the same walk (hip path within 1e-9 m: round-off only)."""
+    from humanoid_sim import kernel
+
+    runs = {}
+    for flag in ([], ["--no-kernel"]):
+        out = tmp_path / ("ref" if flag else "default")
+        assert main([str(SIM1), "--out", str(out), "--quiet", "--no-html", "--no-plots", "--until", "0.5"] + flag) == 0
+        runs[bool(flag)] = (json.loads((out / "summary.json").read_text()), load_results(out / "results.npz"))
+    s_ref, r_ref = runs[True]
+    assert s_ref["compiled_stages"] == 0 and s_ref["reference_stages"] == 3 * s_ref["steps"]
+    s_def, r_def = runs[False]
+    if kernel.AVAILABLE:
+        assert s_def["compiled_stages"] > 0.9 * 3 * s_def["steps"]
+    assert np.abs(r_def["hip_p"] - r_ref["hip_p"]).max() < 1e-9

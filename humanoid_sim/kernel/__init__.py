@@ -28,3 +28,16 @@ try:  # pragma: no cover - exercised by whichever environment runs the tests
     AVAILABLE = True
 except ImportError:  # pragma: no cover
     AVAILABLE = False
+
+
+def cache_present() -> bool:
+    """Whether numba's disk cache of the kernel seems to exist (its index files next to ``compiled.py`` or under
+    NUMBA_CACHE_DIR): when not, the first use compiles it (~30 s).  A heuristic for a progress message only."""
+    import os
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parent
+    places = [here / "__pycache__"]
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        places.append(Path(os.environ["NUMBA_CACHE_DIR"]))
+    return any(any(place.rglob("compiled.ssp_controller-*.nbi")) for place in places if place.is_dir())

@@ -403,6 +403,57 @@ def _solve3(B: np.ndarray, b: np.ndarray) -> np.ndarray:
     return x
 
 
+# ----------------------------------------------------------------------------------------------- references
+@njit
+def _cubic(c: np.ndarray, o: int, t: float) -> tuple[float, float]:
+    """Value and rate of c[o] t^3 + c[o+1] t^2 + c[o+2] t + c[o+3] (``polynomials.eval_cubic``, Horner)."""
+    c3, c2, c1, c0 = c[o], c[o + 1], c[o + 2], c[o + 3]
+    return ((c3 * t + c2) * t + c1) * t + c0, (3.0 * c3 * t + 2.0 * c2) * t + c1
+
+
+@njit
+def _rz_into(R: np.ndarray, yaw: float) -> None:
+    c, s = math.cos(yaw), math.sin(yaw)
+    R[0, 0], R[0, 1], R[0, 2] = c, -s, 0.0
+    R[1, 0], R[1, 1], R[1, 2] = s, c, 0.0
+    R[2, 0], R[2, 1], R[2, 2] = 0.0, 0.0, 1.0
+
+
+@njit
+def ssp_references(tab: np.ndarray, t_a: float, t_b: float, p_a: np.ndarray, v_a: np.ndarray, R_a: np.ndarray,
+                   p_b: np.ndarray, v_b: np.ndarray, R_b: np.ndarray) -> None:
+    """The controller's references in a single-support phase from its ``ReferenceTrajectory.ssp_table``: the hip
+    (Body-17 CoM position, [linear; angular] velocity, orientation) at global time t_a and the swing toe (point,
+    [point velocity; foot angular velocity], toe-body orientation) at t_b, both clamped to the phase's nominal
+    window (``ReferenceTrajectory.hip_reference`` / ``toe_reference``, thesis 3.2.3)."""
+    t0, dur, hip_z, Ox, Oy, s, Rad, theta_cs = tab[0], tab[1], tab[2], tab[3], tab[4], tab[5], tab[6], tab[7]
+    tc = min(max(t_a - t0, 0.0), dur)
+    th, thd = _cubic(tab, 8, tc)
+    phi = theta_cs + s * th
+    sp, cp = math.sin(phi), math.cos(phi)
+    p_a[0], p_a[1], p_a[2] = Ox + s * Rad * sp, Oy - s * Rad * cp, hip_z
+    v_a[0], v_a[1], v_a[2] = Rad * thd * cp, Rad * thd * sp, 0.0
+    v_a[3], v_a[4], v_a[5] = 0.0, 0.0, s * thd
+    _rz_into(R_a, phi)
+    tc = min(max(t_b - t0, 0.0), dur)
+    t_z, R_f, theta_i = tab[12], tab[13], tab[14]
+    if tc <= t_z:
+        r, rd = _cubic(tab, 15, tc)
+    else:
+        r, rd = R_f, 0.0
+    rot, rotd = _cubic(tab, 19, tc)
+    h4, h3, h2, h1, h0 = tab[23], tab[24], tab[25], tab[26], tab[27]
+    z = (((h4 * tc + h3) * tc + h2) * tc + h1) * tc + h0
+    zd = ((4.0 * h4 * tc + 3.0 * h3) * tc + 2.0 * h2) * tc + h1
+    phi = theta_cs + s * (theta_i + rot)
+    sp, cp = math.sin(phi), math.cos(phi)
+    p_b[0], p_b[1], p_b[2] = Ox + s * r * sp, Oy - s * r * cp, z
+    v_b[0], v_b[1], v_b[2] = s * rd * sp + r * rotd * cp, -s * rd * cp + r * rotd * sp, zd
+    yaw, yawd = _cubic(tab, 28, tc)
+    v_b[3], v_b[4], v_b[5] = 0.0, 0.0, yawd
+    _rz_into(R_b, yaw)
+
+
 # ----------------------------------------------------------------------------------------------- controller
 @njit
 def _body_task(motion: np.ndarray, vel: np.ndarray, fpos: np.ndarray, fparent: np.ndarray, point: int, body: int,
@@ -636,13 +687,18 @@ def _thesis_torques(J, dJ, v, a, tau, R, p, support, g1, g3, gs, hj, arm_mass, a
 
 # ----------------------------------------------------------------------------------------------- the stage
 @njit
-def ssp_controller(q, v, J, dJ, ref_a_p, ref_a_v, ref_a_R, ref_b_p, ref_b_v, ref_b_R, parents, axis, idx_q, jR, jp,
+def ssp_controller(q, v, J, dJ, tab, t, parents, axis, idx_q, jR, jp,
                    support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0, ip, fp_, fneed, R, p, fR, fpos, motion,
-                   vel):
-    """Command accelerations theta_ddot_c (26,) of a single-support stage.
+                   vel, qdd_out):
+    """Command accelerations theta_ddot_c (26,) of a single-support stage, written into ``qdd_out``.
 
-    Inputs: the state (q, v); Pinocchio's WORLD joint Jacobians J, dJ at that state; the two task references; the
-    constant arrays of :class:`SSPKernel`.  Work buffers filled for :func:`ssp_dynamics`: joint placements R, p,
+    The compiled functions called from Python write into arrays the caller allocated and return nothing: returning
+    arrays would make numba call back into Python (to unpickle their dtype) in the middle of native code, where a
+    Ctrl-C then surfaces as a SystemError instead of a KeyboardInterrupt (and costs ~0.5 us per array).
+
+    Inputs: the state (q, v) at time t (s); Pinocchio's WORLD joint Jacobians J, dJ at that state; the phase's
+    reference table (``ReferenceTrajectory.ssp_table``, queried at t + the two prediction times); the constant arrays
+    of :class:`SSPKernel`.  Work buffers filled for :func:`ssp_dynamics`: joint placements R, p,
     frame placements fR, fpos, and for the frames flagged in ``fneed`` (the ones this phase's tasks read) the frame
     [J | drift] ``motion`` and velocities ``vel`` (LOCAL_WORLD_ALIGNED)."""
     forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
@@ -655,16 +711,19 @@ def ssp_controller(q, v, J, dJ, ref_a_p, ref_a_v, ref_a_R, ref_b_p, ref_b_v, ref
     for i in range(26):
         th[i] = jsign[i] * q[theta_q[i]] - theta0[i]
         thd[i] = jsign[i] * v[jcols[i]]
-    return _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, ref_a_v, ref_a_R, ref_b_p,
+    ref_a_p, ref_a_v, ref_a_R = np.empty(3), np.empty(6), np.empty((3, 3))
+    ref_b_p, ref_b_v, ref_b_R = np.empty(3), np.empty(6), np.empty((3, 3))
+    ssp_references(tab, t + fp_[0], t + fp_[1], ref_a_p, ref_a_v, ref_a_R, ref_b_p, ref_b_v, ref_b_R)
+    qdd_out[:] = _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, ref_a_v, ref_a_R, ref_b_p,
                        ref_b_v, ref_b_R, ip, fp_)
 
 
 @njit
 def ssp_dynamics(q, v, J, dJ, M_upper, h, qdd, anchor_R, anchor_p, lock_anchor, support, fparent, jcols, jsign,
                  weld, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, R, p, fR,
-                 fpos, vel):
-    """Computed torque of a single-support stage for the command accelerations ``qdd``: (a (nv,), lam (7,), T_cmd
-    (26,), tau (nv,), log (LOG_SIZE,)).  M_upper: Pinocchio's crba (upper triangle), h: nonLinearEffects; the work
+                 fpos, vel, a_out, lam_out, T_out, tau_out, log):
+    """Computed torque of a single-support stage for the command accelerations ``qdd``, written into a_out (nv,),
+    lam_out (7,), T_out (26,, T_cmd), tau_out (nv,) and log (LOG_SIZE,, zeroed here).  M_upper: Pinocchio's crba (upper triangle), h: nonLinearEffects; the work
     buffers R ... vel as :func:`ssp_controller` left them."""
     nv = v.size
     a_des = np.zeros(nv)
@@ -678,7 +737,7 @@ def ssp_dynamics(q, v, J, dJ, M_upper, h, qdd, anchor_R, anchor_p, lock_anchor, 
                                             anchor_p, lock_q, lock_v, lock_anchor, kp, kd)
     a, tau, lam = _inverse_square(Jc, r, M, h, a_des, R[1], p[1], fR[weld], fpos[weld], lock_v)
     T = _thesis_torques(J, dJ, v, a, tau, R, p, support, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity)
-    log = np.zeros(LOG_SIZE)
+    log[:] = 0.0
     for i in range(26):
         if T[i] > limits[i] or T[i] < -limits[i] or not np.isfinite(T[i]):
             log[0] = 1.0
@@ -693,17 +752,22 @@ def ssp_dynamics(q, v, J, dJ, M_upper, h, qdd, anchor_R, anchor_p, lock_anchor, 
     log[22:25] = fpos[F_TPL]
     log[25:34] = fR[F_O1].ravel()
     log[34:43] = fR[F_O2].ravel()
-    return a, lam, T, tau, log
+    a_out[:] = a
+    lam_out[:] = lam
+    T_out[:] = T
+    tau_out[:] = tau
 
 
 @njit
 def project_on_support(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR, jp,
-                       support, f_parent, f_R, f_p) -> tuple[np.ndarray, np.ndarray]:
-    """(q, v) with the support foot at its anchor and at rest (``Simulator.project_on_support``): toe lock at its
-    anchor angle with zero rate, base placement re-derived from the foot's anchor, base twist from the joint
-    rates through the foot's LOCAL Jacobian."""
-    q = q.copy()
-    v = v.copy()
+                       support, f_parent, f_R, f_p, q_out, v_out) -> None:
+    """(q, v) with the support foot at its anchor and at rest (``Simulator.project_on_support``) into (q_out, v_out):
+    toe lock at its anchor angle with zero rate, base placement re-derived from the foot's anchor, base twist from
+    the joint rates through the foot's LOCAL Jacobian."""
+    q_out[:] = q
+    v_out[:] = v
+    q = q_out
+    v = v_out
     q[lock_q] = lock_anchor
     v[lock_v] = 0.0
     nj = parents.size
@@ -735,4 +799,3 @@ def project_on_support(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, pa
     tw[:3] = lin
     tw[3:] = ang
     v[:6] = -mv(Ad, tw)
-    return q, v

@@ -184,27 +184,36 @@ class SSPKernel:
             self._anchor_key = (anchors, M, angle)
         return self._anchor_val
 
-    def controller(self, phase: Phase, q: np.ndarray, v: np.ndarray, data: pin.Data, ref_a, ref_b) -> np.ndarray:
-        """theta_ddot_c (26,) at (q, v); ``data`` holds computeJointJacobiansTimeVariation at (q, v)."""
-        return ssp_controller(q, v, data.J, data.dJ, ref_a.p, ref_a.v, ref_a.R, ref_b.p, ref_b.v, ref_b.R,
-                              *self._ctrl_args[phase])
+    def controller(self, phase: Phase, q: np.ndarray, v: np.ndarray, data: pin.Data, table: np.ndarray, t: float
+                   ) -> np.ndarray:
+        """theta_ddot_c (26,) at (q, v) and time t (s); ``data`` holds computeJointJacobiansTimeVariation at (q, v),
+        ``table`` is the phase's ``ReferenceTrajectory.ssp_table``."""
+        qdd = np.empty(26)
+        ssp_controller(q, v, data.J, data.dJ, table, t, *self._ctrl_args[phase], qdd)
+        return qdd
 
     def dynamics(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, data: pin.Data,
                  qdd: np.ndarray) -> tuple:
         """(a, lam, T_cmd, tau, log) of the computed torque for ``qdd`` right after :meth:`controller` at (q, v);
         ``data`` also holds crba and nonLinearEffects."""
-        return ssp_dynamics(q, v, data.J, data.dJ, data.M, data.nle, qdd, *self._anchor(phase, anchors),
-                            *self._dyn_args[phase])
+        nv = v.size
+        out = (np.empty(nv), np.empty(7), np.empty(26), np.empty(nv), np.empty(LOG_SIZE))
+        ssp_dynamics(q, v, data.J, data.dJ, data.M, data.nle, qdd, *self._anchor(phase, anchors), *self._dyn_args[phase],
+                     *out)
+        return out
 
-    def stage(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, data: pin.Data, ref_a, ref_b
-              ) -> StageOutput:
-        """Evaluate one single-support stage; ``data`` holds computeJointJacobiansTimeVariation, crba and
-        nonLinearEffects at (q, v)."""
-        qdd = self.controller(phase, q, v, data, ref_a, ref_b)
+    def stage(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, data: pin.Data, table: np.ndarray,
+              t: float) -> StageOutput:
+        """Evaluate one single-support stage at (q, v) and time t (s); ``data`` holds
+        computeJointJacobiansTimeVariation, crba and nonLinearEffects at (q, v), ``table`` the phase's
+        ``ReferenceTrajectory.ssp_table``."""
+        qdd = self.controller(phase, q, v, data, table, t)
         a, lam, T, tau, log = self.dynamics(phase, anchors, q, v, data, qdd)
         return StageOutput(a, lam, qdd, T, tau, log)
 
     def project(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The compiled ``Simulator.project_on_support`` for the support foot of ``phase``."""
         ssp = self._support_ssp[phase]
-        return project_on_support(q, v, *self._anchor(ssp, anchors), *self._proj_args[ssp])
+        q_out, v_out = np.empty_like(q), np.empty_like(v)
+        project_on_support(q, v, *self._anchor(ssp, anchors), *self._proj_args[ssp], q_out, v_out)
+        return q_out, v_out

@@ -64,6 +64,15 @@ def _rz(yaw: float) -> np.ndarray:
     return np.array(((c, -s, 0.0), (s, c, 0.0), (0.0, 0.0, 1.0)))
 
 
+SSP_TABLE = ("t_start", "duration", "hip_z", "Ox", "Oy", "s", "R", "theta_cs", "c3", "c2", "c1", "c0", "t_z", "R_f",
+             "theta_i", "g3", "g2", "g1", "g0", "f3", "f2", "f1", "f0", "h4", "h3", "h2", "h1", "h0", "j3", "j2", "j1",
+             "j0")
+"""Layout of :meth:`ReferenceTrajectory.ssp_table`: the phase's nominal window (s), the hip height (m), the arc
+centre (m), side sign, radius (m) and start angle (rad), the hip angle cubic c, then the swing foot's radius cubic
+g (used up to t_z, R_f after), rotation cubic f from theta_i, height quartic h and yaw cubic j (thesis 3.2.3)."""
+SSP_TABLE_SIZE = len(SSP_TABLE)
+
+
 class TrajectoryError(ValueError):
     """Invalid query of a :class:`ReferenceTrajectory` (bad phase index, foot name, landing data)."""
 
@@ -438,6 +447,22 @@ class ReferenceTrajectory:
             kind, idx = self._feet[k][foot]
             toes.append(self._slots[idx].p if kind == "fix" else self._swing_sample(sg, tc)[0])
         return hip, toes[0], toes[1]
+
+    def ssp_table(self, phase: int) -> np.ndarray:
+        """The numbers behind :meth:`hip_reference` and the swing foot's :meth:`toe_reference` in single-support
+        ``phase``, as one float64 array (layout :data:`SSP_TABLE`), for the compiled kernel (``humanoid_sim.kernel``),
+        which evaluates the same formulas from it.  Valid until the next :meth:`set_landing`."""
+        k = self._check_index(phase, len(self.phases), "phase")
+        ph = self.phases[k]
+        if not ph.is_ssp:
+            raise TrajectoryError(f"phase: {k} ({ph.name}) is not a single support phase")
+        sg = self._segs[ph.segment]
+        w = sg.swing
+        tab = np.array([ph.t_start, ph.duration, self.hip_z, sg.Ox, sg.Oy, sg.s, sg.R, sg.theta_cs, *sg.c, w.t_z,
+                        w.R_f, w.theta_i, *w.g, *w.f, *w.h, *w.j], dtype=float)
+        if tab.size != SSP_TABLE_SIZE:
+            raise AssertionError(f"ssp_table: {tab.size} numbers, layout expects {SSP_TABLE_SIZE}")
+        return tab
 
     @staticmethod
     def _swing_sample(sg: _Segment, t: float) -> tuple:
