@@ -39,6 +39,9 @@ Dynamics = Callable[[float, np.ndarray, np.ndarray, int], np.ndarray]
 Projection = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 """project(q, v) -> (q, v) on a constraint manifold (applied to every stage state and to the step's end)."""
 
+Advance = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
+"""advance(q, v, dq, dv, h) -> project(integrate(q, h dq), v + h dv), computed in one go."""
+
 
 class RungeKutta:
     """One fixed step of an explicit RK method on (q, v)."""
@@ -50,9 +53,10 @@ class RungeKutta:
         self.tab = TABLEAUS[method]
 
     def step(self, f: Dynamics, t: float, q: np.ndarray, v: np.ndarray, h: float,
-             project: Projection | None = None) -> tuple[np.ndarray, np.ndarray]:
+             project: Projection | None = None, advance: Advance | None = None) -> tuple[np.ndarray, np.ndarray]:
         """One step of size h (s) from (q, v) at time t; ``project`` (optional) maps every stage state and the
-        result onto a constraint manifold (coordinate projection)."""
+        result onto a constraint manifold (coordinate projection).  ``advance`` (optional) replaces both: it returns
+        the projection of (q integrated by h dq, v + h dv) itself (the compiled kernel's fused version)."""
         tab = self.tab
         vs: list[np.ndarray] = []
         accs: list[np.ndarray] = []
@@ -60,19 +64,18 @@ class RungeKutta:
             if i == 0:
                 qi, vi = q, v
             else:
-                dq = _combine(tab.a[i], vs)
-                dv = _combine(tab.a[i], accs)
-                qi = pin.integrate(self.model, q, h * dq)
-                vi = v + h * dv
-                if project is not None:
-                    qi, vi = project(qi, vi)
+                qi, vi = self._advance(q, v, _combine(tab.a[i], vs), _combine(tab.a[i], accs), h, project, advance)
             vs.append(vi)
             accs.append(f(t + ci * h, qi, vi, i))
-        q_new = pin.integrate(self.model, q, h * _combine(tab.b, vs))
-        v_new = v + h * _combine(tab.b, accs)
-        if project is not None:
-            q_new, v_new = project(q_new, v_new)
-        return q_new, v_new
+        return self._advance(q, v, _combine(tab.b, vs), _combine(tab.b, accs), h, project, advance)
+
+    def _advance(self, q: np.ndarray, v: np.ndarray, dq: np.ndarray, dv: np.ndarray, h: float,
+                 project: Projection | None, advance: Advance | None) -> tuple[np.ndarray, np.ndarray]:
+        if advance is not None:
+            return advance(q, v, dq, dv, h)
+        qi = pin.integrate(self.model, q, h * dq)
+        vi = v + h * dv
+        return (qi, vi) if project is None else project(qi, vi)
 
 
 def _combine(coeffs: tuple[float, ...], xs: list[np.ndarray]) -> np.ndarray:

@@ -280,7 +280,8 @@ class Simulator:
         raw: list[tuple] = []   # per step: (t, k, phase, q, v, nominal references) + the stage-0 record
         stage0: list[tuple] = [()]
         fid_hip = self.fid["Pc_17"]
-        project = self.project_on_support if self.kernel is None else self.kernel.project
+        project = self.project_on_support
+        advance = None if self.kernel is None else self.kernel.advance  # integrate + project, compiled
         completed, reason = False, ""
         steps = 0
         wall0 = time.perf_counter()
@@ -299,7 +300,10 @@ class Simulator:
                     reason = f"stopped at t = {t:.3f} s (requested stop time)"
                     break
                 k, phase = sel.k, sel.phase
-                q_new, v_new = self.rk.step(f, t, q, v, h, lambda qs, vs: project(phase, anchors, qs, vs))
+                if advance is None:
+                    q_new, v_new = self.rk.step(f, t, q, v, h, lambda qs, vs: project(phase, anchors, qs, vs))
+                else:
+                    q_new, v_new = self.rk.step(f, t, q, v, h, advance=lambda *a: advance(phase, anchors, *a))
                 raw.append((t, k, phase, q, v, traj.sample_global(t), traj.hip_reference(k, t)[0]) + stage0[0])
                 q, v, t = q_new, v_new, t + h
                 steps += 1
@@ -390,7 +394,8 @@ class Simulator:
         Q, V, A = np.array(q), np.array(v), np.array(a)
         thesis = lambda X: hm.theta_sign * X[:, hm.theta_v_idx]  # noqa: E731 -- v-ordered arrays -> thesis
         bf, bm, fw, cop = self._reactions.batch(Q, V, A, [ph.contacts for ph in phase], lam)
-        contact = np.array([[f in ph.stance_feet for f in ("R", "L")] for ph in phase])
+        stance = {ph: [f in ph.stance_feet for f in ("R", "L")] for ph in Phase}
+        contact = np.array([stance[ph] for ph in phase])
         ftot = fw[:, :, :3].sum(axis=1)
         mtot = fw[:, :, 3:].sum(axis=1)
         zmp = np.full((n, 3), np.nan)

@@ -416,6 +416,32 @@ def test_projection_matches_reference(hm, walks, name):
     assert worst_q <= TOL_PROJECT_Q and worst_v <= TOL_PROJECT_V, (worst_q, worst_v)
 
 
+@needs_numba
+@pytest.mark.parametrize("name", ["sim1", "sim3"])
+def test_advance_matches_integrate_then_project(hm, walks, name):
+    """SSPKernel.advance(q, v, dq, dv, h) = project_on_support(pin.integrate(q, h dq), v + h dv) at the walk's step
+    states with random stage increments (|dq| ~ 0.3 rad/s, |dv| ~ 3 rad/s^2, h = 0.01 s: an ode3 stage's size), in
+    all four phases; the base quaternion stays unit length."""
+    from humanoid_sim.kernel.stage import SSPKernel
+
+    sim, _, arr = walks[name]
+    ker = SSPKernel(hm, sim.cmd, sim.act, sim.dyn.gains)
+    rng = np.random.default_rng(5)
+    worst_q = worst_v = worst_n = 0.0
+    keep = []
+    for i in range(len(arr["t"])):
+        ph, _, _, q, v, anchors = _state(hm, arr, i, 0.0, 0.0, None)
+        keep.append(anchors)
+        dq, dv = rng.normal(0.0, 0.3, hm.model.nv), rng.normal(0.0, 3.0, hm.model.nv)
+        qk, vk = ker.advance(ph, anchors, q, v, dq, dv, 0.01)
+        qr, vr = sim.project_on_support(ph, anchors, pin.integrate(hm.model, q, 0.01 * dq), v + 0.01 * dv)
+        worst_q = max(worst_q, np.abs(qk - qr).max())
+        worst_v = max(worst_v, np.abs(vk - vr).max())
+        worst_n = max(worst_n, abs(np.linalg.norm(qk[3:7]) - 1.0))
+    assert worst_q <= TOL_PROJECT_Q and worst_v <= TOL_PROJECT_V, (worst_q, worst_v)
+    assert worst_n <= 1e-15, worst_n  # normalised: one rounding of a unit vector
+
+
 # ----------------------------------------------------------------------------------------------- 5. fallbacks
 def _compiled_twin(hm, sim_ref, sc):
     """A compiled simulator reading the reference simulator's (landing-adjusted) trajectory."""
@@ -565,6 +591,8 @@ def test_whole_walk_compiled_equals_reference(sim1_walks):
     assert not bad, bad
     dq = float(np.abs(a_c["q"] - a_r["q"]).max())
     assert dq <= TOL_WALK_Q, dq
+    # the compiled advance normalises the base quaternion as Pinocchio's integrate does: no drift over the walk
+    assert np.abs(np.linalg.norm(a_c["q"][:, 3:7], axis=1) - 1.0).max() <= 1e-15
 
 
 # ----------------------------------------------------------------------------------------------- 7. no numba

@@ -759,15 +759,11 @@ def ssp_dynamics(q, v, J, dJ, M_upper, h, qdd, anchor_R, anchor_p, lock_anchor, 
 
 
 @njit
-def project_on_support(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR, jp,
-                       support, f_parent, f_R, f_p, q_out, v_out) -> None:
-    """(q, v) with the support foot at its anchor and at rest (``Simulator.project_on_support``) into (q_out, v_out):
-    toe lock at its anchor angle with zero rate, base placement re-derived from the foot's anchor, base twist from
-    the joint rates through the foot's LOCAL Jacobian."""
-    q_out[:] = q
-    v_out[:] = v
-    q = q_out
-    v = v_out
+def _project_inplace(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR, jp,
+                     support, f_parent, f_R, f_p) -> None:
+    """Put (q, v) on the support foot in place (``Simulator.project_on_support``): toe lock at its anchor angle with
+    zero rate, base placement re-derived from the foot's anchor (anchor * oMf^-1 * base: the base's own value
+    cancels), base twist from the joint rates through the foot's LOCAL Jacobian."""
     q[lock_q] = lock_anchor
     v[lock_v] = 0.0
     nj = parents.size
@@ -782,7 +778,10 @@ def project_on_support(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, pa
     q[:3] = anchor_p + mv(X, pb - pf)
     quat = np.empty(4)
     rot_to_quat(Rn, quat)
-    q[3:7] = quat
+    # unit length, as Pinocchio's integrate leaves it (without this the round-off of a slightly non-unit quaternion
+    # would compound from step to step, since the compiled advance does not pass through integrate)
+    n = math.sqrt(quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3])
+    q[3:7] = quat / n
     # LOCAL Jacobian of the foot frame times the joint rates (the joint columns do not depend on the base)
     vj = np.zeros(3)
     wj = np.zeros(3)
@@ -799,3 +798,28 @@ def project_on_support(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, pa
     tw[:3] = lin
     tw[3:] = ang
     v[:6] = -mv(Ad, tw)
+
+
+@njit
+def project_on_support(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR, jp,
+                       support, f_parent, f_R, f_p, q_out, v_out) -> None:
+    """(q, v) projected on the support foot (:func:`_project_inplace`) into (q_out, v_out)."""
+    q_out[:] = q
+    v_out[:] = v
+    _project_inplace(q_out, v_out, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR,
+                     jp, support, f_parent, f_R, f_p)
+
+
+@njit
+def advance_on_support(q, v, dq, dv, h, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v,
+                       jR, jp, support, f_parent, f_R, f_p, q_out, v_out) -> None:
+    """The state at (q + h dq, v + h dv) projected on the support foot, into (q_out, v_out): the integrator's
+    ``integrate`` then ``project`` in one call.  Revolute coordinates add (Pinocchio's integrate of a revolute joint);
+    the base is not integrated, since the projection re-derives it from the foot (its input value cancels)."""
+    q_out[:] = q
+    for j in range(2, parents.size):
+        q_out[idx_q[j]] = q[idx_q[j]] + h * dq[idx_v[j]]
+    for i in range(v.size):
+        v_out[i] = v[i] + h * dv[i]
+    _project_inplace(q_out, v_out, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR,
+                     jp, support, f_parent, f_R, f_p)

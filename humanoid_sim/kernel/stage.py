@@ -27,7 +27,8 @@ import pinocchio as pin
 from humanoid_sim.actuators import Actuators
 from humanoid_sim.command import LAYOUTS, TASK_FRAMES, CommandAccelerations
 from humanoid_sim.contact.constraints import Anchors, Baumgarte
-from humanoid_sim.kernel.compiled import LOG_SIZE, project_on_support, ssp_controller, ssp_dynamics
+from humanoid_sim.kernel.compiled import (LOG_SIZE, advance_on_support, project_on_support, ssp_controller,
+                                           ssp_dynamics)
 from humanoid_sim.kernel.tree import TreeConstants
 from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import FOOT_SPECS, Phase
@@ -216,4 +217,13 @@ class SSPKernel:
         ssp = self._support_ssp[phase]
         q_out, v_out = np.empty_like(q), np.empty_like(v)
         project_on_support(q, v, *self._anchor(ssp, anchors), *self._proj_args[ssp], q_out, v_out)
+        return q_out, v_out
+
+    def advance(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, dq: np.ndarray, dv: np.ndarray,
+                h: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`project` of (q integrated by h dq, v + h dv): the integrator's stage and step-end states
+        (``RungeKutta.step``'s ``advance``)."""
+        ssp = self._support_ssp[phase]
+        q_out, v_out = np.empty_like(q), np.empty_like(v)
+        advance_on_support(q, v, dq, dv, h, *self._anchor(ssp, anchors), *self._proj_args[ssp], q_out, v_out)
         return q_out, v_out
