@@ -674,3 +674,24 @@ def test_ssp_table_refuses_a_double_support_phase(walks):
     k = next(i for i, ph in enumerate(sim.traj.phases) if not ph.is_ssp)
     with pytest.raises(TrajectoryError, match="not a single support phase"):
         sim.traj.ssp_table(k)
+
+
+@needs_numba
+def test_split_stage_equals_fused_stage(hm, walks):
+    """SSPKernel.split (the controller and dynamics halves as two calls, for profiling) gives the fused call's
+    results bit for bit at single-support states of sim 1: the same compiled functions run in the same order."""
+    from humanoid_sim.kernel.stage import SSPKernel
+
+    sim, _, arr = walks["sim1"]
+    ker = SSPKernel(hm, sim.cmd, sim.act, sim.dyn.gains)
+    rows = np.flatnonzero(np.isin(arr["basic_phase"], [BASIC[Phase.LFFSSP], BASIC[Phase.RFFSSP]]))[::5]
+    assert rows.size >= 30
+    for i in rows:
+        ph, k, t, q, v, anchors = _state(hm, arr, i, 0.0, 0.0, None)
+        d = _pin_data(hm.model, q, v)
+        outs = []
+        for split in (False, True):
+            ker.split = split
+            outs.append(ker.stage(ph, anchors, q, v, d, sim.traj.ssp_table(k), t))
+        for name in ("a", "lam", "thdd_c", "T_cmd", "tau", "log"):
+            np.testing.assert_array_equal(getattr(outs[0], name), getattr(outs[1], name), err_msg=name)

@@ -759,6 +759,20 @@ def ssp_dynamics(q, v, J, dJ, M_upper, h, qdd, anchor_R, anchor_p, lock_anchor, 
 
 
 @njit
+def ssp_stage(q, v, J, dJ, M_upper, h, tab, t, anchor_R, anchor_p, lock_anchor, parents, axis, idx_q, jR, jp,
+              support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0, ip, fp_, fneed, R, p, fR, fpos, motion, vel,
+              weld, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, qdd_out,
+              a_out, lam_out, T_out, tau_out, log) -> None:
+    """:func:`ssp_controller` then :func:`ssp_dynamics` in one call (the simulator's hot path; the two halves stay
+    separate functions so that a profile can time them apart)."""
+    ssp_controller(q, v, J, dJ, tab, t, parents, axis, idx_q, jR, jp, support, fparent, fRp, fpp, jcols, jsign,
+                   theta_q, theta0, ip, fp_, fneed, R, p, fR, fpos, motion, vel, qdd_out)
+    ssp_dynamics(q, v, J, dJ, M_upper, h, qdd_out, anchor_R, anchor_p, lock_anchor, support, fparent, jcols, jsign,
+                 weld, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, R, p, fR,
+                 fpos, vel, a_out, lam_out, T_out, tau_out, log)
+
+
+@njit
 def _project_inplace(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR, jp,
                      support, f_parent, f_R, f_p) -> None:
     """Put (q, v) on the support foot in place (``Simulator.project_on_support``): toe lock at its anchor angle with

@@ -28,7 +28,7 @@ from humanoid_sim.actuators import Actuators
 from humanoid_sim.command import LAYOUTS, TASK_FRAMES, CommandAccelerations
 from humanoid_sim.contact.constraints import Anchors, Baumgarte
 from humanoid_sim.kernel.compiled import (LOG_SIZE, advance_on_support, project_on_support, ssp_controller,
-                                           ssp_dynamics)
+                                           ssp_dynamics, ssp_stage)
 from humanoid_sim.kernel.tree import TreeConstants
 from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import FOOT_SPECS, Phase
@@ -127,6 +127,9 @@ class SSPKernel:
         self.gravity = np.array(model.gravity.linear, dtype=float)
         self._limits = act.limits.astype(float)
         self._anchor_key: tuple | None = None
+        self.split = False
+        """True: :meth:`stage` calls :meth:`controller` and :meth:`dynamics` separately (same results, one more call;
+        for a profile that times the two apart, as ``scripts/bench.py`` does), else one fused compiled call."""
         nf = len(FRAMES)
         # work buffers shared by the controller and dynamics calls: R, p (joints), fR, fpos, motion, vel (frames)
         self._work = (np.empty((tr.nj, 3, 3)), np.empty((tr.nj, 3)), np.empty((nf, 3, 3)), np.empty((nf, 3)),
@@ -148,7 +151,7 @@ class SSPKernel:
     def _build_args(self) -> None:
         """The constant trailing arguments of the compiled calls, per single-support phase."""
         tr, w = self.tree, self._work
-        self._ctrl_args, self._dyn_args, self._proj_args = {}, {}, {}
+        self._ctrl_args, self._dyn_args, self._stage_args, self._proj_args = {}, {}, {}, {}
         for ph, (ip, fp_, weld, lock_q, lock_v, _, _) in self.phase.items():
             self._ctrl_args[ph] = (tr.parents, tr.axis, tr.idx_q, tr.jR, tr.jp, tr.support, tr.fparent, tr.fR, tr.fp,
                                    self.jcols, self.jsign, self.theta_q, self.theta0, ip, fp_,
@@ -156,6 +159,9 @@ class SSPKernel:
             self._dyn_args[ph] = (tr.support, tr.fparent, self.jcols, self.jsign, weld, lock_q, lock_v, self.kp,
                                   self.kd, self.g1, self.g3, self.gs, self.hj, self.arm_mass, self.arm_lever,
                                   self.arm_I, self.gravity, self._limits, w[0], w[1], w[2], w[3], w[5])
+            self._stage_args[ph] = self._ctrl_args[ph] + (weld, lock_q, lock_v, self.kp, self.kd, self.g1, self.g3,
+                                                          self.gs, self.hj, self.arm_mass, self.arm_lever, self.arm_I,
+                                                          self.gravity, self._limits)
             self._proj_args[ph] = (lock_q, lock_v, tr.parents, tr.axis, tr.idx_q, tr.idx_v, tr.jR, tr.jp, tr.support,
                                    tr.fparent[weld], tr.fR[weld], tr.fp[weld])
         self._support_ssp = {ph: Phase.LFFSSP if ph.support_foot == "L" else Phase.RFFSSP for ph in Phase}
@@ -208,8 +214,15 @@ class SSPKernel:
         """Evaluate one single-support stage at (q, v) and time t (s); ``data`` holds
         computeJointJacobiansTimeVariation, crba and nonLinearEffects at (q, v), ``table`` the phase's
         ``ReferenceTrajectory.ssp_table``."""
-        qdd = self.controller(phase, q, v, data, table, t)
-        a, lam, T, tau, log = self.dynamics(phase, anchors, q, v, data, qdd)
+        if self.split:
+            qdd = self.controller(phase, q, v, data, table, t)
+            a, lam, T, tau, log = self.dynamics(phase, anchors, q, v, data, qdd)
+            return StageOutput(a, lam, qdd, T, tau, log)
+        nv = v.size
+        qdd, a, lam, T, tau, log = (np.empty(26), np.empty(nv), np.empty(7), np.empty(26), np.empty(nv),
+                                    np.empty(LOG_SIZE))
+        ssp_stage(q, v, data.J, data.dJ, data.M, data.nle, table, t, *self._anchor(phase, anchors),
+                  *self._stage_args[phase], qdd, a, lam, T, tau, log)
         return StageOutput(a, lam, qdd, T, tau, log)
 
     def project(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
