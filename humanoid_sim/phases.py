@@ -25,6 +25,7 @@ Decisions:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 
@@ -177,10 +178,11 @@ def ssp_should_end(swing_toe_p: np.ndarray, toe_start_p: np.ndarray, toe_end_ref
     p = _vec3(swing_toe_p, "swing_toe_p")
     p0 = _vec3(toe_start_p, "toe_start_p")
     pf = _vec3(toe_end_ref_p, "toe_end_ref_p")
-    low = (p[2] - thresholds.toe_flat_height) < thresholds.touchdown_tolerance
-    moved = np.hypot(*(p[:2] - p0[:2]))
-    planned = np.hypot(*(pf[:2] - p0[:2]))
-    return bool(low and moved > thresholds.min_horizontal_progress_fraction * planned)
+    if not (p[2] - thresholds.toe_flat_height) < thresholds.touchdown_tolerance:
+        return False  # still in the air (most steps): the travel need not be measured
+    moved = math.hypot(p[0] - p0[0], p[1] - p0[1])
+    planned = math.hypot(pf[0] - p0[0], pf[1] - p0[1])
+    return bool(moved > thresholds.min_horizontal_progress_fraction * planned)
 
 
 def dsp_should_end(hip_com_p: np.ndarray, hip_end_ref_p: np.ndarray, elapsed: float, t_dsp: float,
