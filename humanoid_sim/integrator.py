@@ -39,8 +39,9 @@ Dynamics = Callable[[float, np.ndarray, np.ndarray, int], np.ndarray]
 Projection = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 """project(q, v) -> (q, v) on a constraint manifold (applied to every stage state and to the step's end)."""
 
-Advance = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
-"""advance(q, v, dq, dv, h) -> project(integrate(q, h dq), v + h dv), computed in one go."""
+Advance = Callable[[np.ndarray, np.ndarray, tuple, list, list, float], tuple[np.ndarray, np.ndarray]]
+"""advance(q, v, coeffs, vs, accs, h) -> project(integrate(q, h dq), v + h dv) with dq = sum_j coeffs[j] vs[j] and
+dv = sum_j coeffs[j] accs[j] over the stages so far, computed in one go."""
 
 
 class RungeKutta:
@@ -64,17 +65,19 @@ class RungeKutta:
             if i == 0:
                 qi, vi = q, v
             else:
-                qi, vi = self._advance(q, v, _combine(tab.a[i], vs), _combine(tab.a[i], accs), h, project, advance)
+                qi, vi = self._advance(q, v, tab.a[i], vs, accs, h, project, advance)
             vs.append(vi)
             accs.append(f(t + ci * h, qi, vi, i))
-        return self._advance(q, v, _combine(tab.b, vs), _combine(tab.b, accs), h, project, advance)
+        return self._advance(q, v, tab.b, vs, accs, h, project, advance)
 
-    def _advance(self, q: np.ndarray, v: np.ndarray, dq: np.ndarray, dv: np.ndarray, h: float,
-                 project: Projection | None, advance: Advance | None) -> tuple[np.ndarray, np.ndarray]:
+    def _advance(self, q: np.ndarray, v: np.ndarray, coeffs: tuple[float, ...], vs: list[np.ndarray],
+                 accs: list[np.ndarray], h: float, project: Projection | None, advance: Advance | None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The (projected) state at q integrated by h sum c_j vs_j, v + h sum c_j accs_j."""
         if advance is not None:
-            return advance(q, v, dq, dv, h)
-        qi = pin.integrate(self.model, q, h * dq)
-        vi = v + h * dv
+            return advance(q, v, coeffs, vs, accs, h)
+        qi = pin.integrate(self.model, q, h * _combine(coeffs, vs))
+        vi = v + h * _combine(coeffs, accs)
         return (qi, vi) if project is None else project(qi, vi)
 
 

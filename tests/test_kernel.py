@@ -419,25 +419,31 @@ def test_projection_matches_reference(hm, walks, name):
 @needs_numba
 @pytest.mark.parametrize("name", ["sim1", "sim3"])
 def test_advance_matches_integrate_then_project(hm, walks, name):
-    """SSPKernel.advance(q, v, dq, dv, h) = project_on_support(pin.integrate(q, h dq), v + h dv) at the walk's step
-    states with random stage increments (|dq| ~ 0.3 rad/s, |dv| ~ 3 rad/s^2, h = 0.01 s: an ode3 stage's size), in
-    all four phases; the base quaternion stays unit length."""
+    """SSPKernel.advance(q, v, coeffs, vs, accs, h) = project_on_support(pin.integrate(q, h dq), v + h dv) with
+    dq, dv the integrator's combinations (``integrator._combine``) of random stage rates (|v_j| ~ 0.3 rad/s,
+    |a_j| ~ 3 rad/s^2) for ode3's rows (0.5), (0, 0.75) and its weights (2/9, 1/3, 4/9), h = 0.01 s, at the walk's
+    step states in all four phases; the combinations themselves are bit-identical; the base quaternion stays unit."""
+    from humanoid_sim.integrator import TABLEAUS, _combine
     from humanoid_sim.kernel.stage import SSPKernel
 
     sim, _, arr = walks[name]
     ker = SSPKernel(hm, sim.cmd, sim.act, sim.dyn.gains)
+    tab = TABLEAUS["ode3"]
     rng = np.random.default_rng(5)
     worst_q = worst_v = worst_n = 0.0
     keep = []
     for i in range(len(arr["t"])):
         ph, _, _, q, v, anchors = _state(hm, arr, i, 0.0, 0.0, None)
         keep.append(anchors)
-        dq, dv = rng.normal(0.0, 0.3, hm.model.nv), rng.normal(0.0, 3.0, hm.model.nv)
-        qk, vk = ker.advance(ph, anchors, q, v, dq, dv, 0.01)
-        qr, vr = sim.project_on_support(ph, anchors, pin.integrate(hm.model, q, 0.01 * dq), v + 0.01 * dv)
-        worst_q = max(worst_q, np.abs(qk - qr).max())
-        worst_v = max(worst_v, np.abs(vk - vr).max())
-        worst_n = max(worst_n, abs(np.linalg.norm(qk[3:7]) - 1.0))
+        vs = [rng.normal(0.0, 0.3, hm.model.nv) for _ in range(3)]
+        accs = [rng.normal(0.0, 3.0, hm.model.nv) for _ in range(3)]
+        for coeffs, n in ((tab.a[1], 1), (tab.a[2], 2), (tab.b, 3)):
+            qk, vk = ker.advance(ph, anchors, q, v, coeffs, vs[:n], accs[:n], 0.01)
+            dq, dv = _combine(coeffs, vs[:n]), _combine(coeffs, accs[:n])
+            qr, vr = sim.project_on_support(ph, anchors, pin.integrate(hm.model, q, 0.01 * dq), v + 0.01 * dv)
+            worst_q = max(worst_q, np.abs(qk - qr).max())
+            worst_v = max(worst_v, np.abs(vk - vr).max())
+            worst_n = max(worst_n, abs(np.linalg.norm(qk[3:7]) - 1.0))
     assert worst_q <= TOL_PROJECT_Q and worst_v <= TOL_PROJECT_V, (worst_q, worst_v)
     assert worst_n <= 1e-15, worst_n  # normalised: one rounding of a unit vector
 

@@ -825,15 +825,35 @@ def project_on_support(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, pa
 
 
 @njit
-def advance_on_support(q, v, dq, dv, h, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v,
-                       jR, jp, support, f_parent, f_R, f_p, q_out, v_out) -> None:
-    """The state at (q + h dq, v + h dv) projected on the support foot, into (q_out, v_out): the integrator's
-    ``integrate`` then ``project`` in one call.  Revolute coordinates add (Pinocchio's integrate of a revolute joint);
-    the base is not integrated, since the projection re-derives it from the foot (its input value cancels)."""
+def advance_on_support(q, v, coeffs, vs, accs, h, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis,
+                       idx_q, idx_v, jR, jp, support, f_parent, f_R, f_p, q_out, v_out) -> None:
+    """The state at (q + h dq, v + h dv), dq = sum_j coeffs[j] vs[j] and dv = sum_j coeffs[j] accs[j] (a Runge-Kutta
+    stage or step end), projected on the support foot, into (q_out, v_out): ``RungeKutta.step``'s combination,
+    ``integrate`` and ``project`` in one call.  The sums run left to right over the non-zero coefficients (the
+    rounding of ``integrator._combine``); revolute coordinates add (Pinocchio's integrate of a revolute joint); the
+    base is not integrated, since the projection re-derives it from the foot (its input value cancels)."""
+    nv = v.size
+    dq = np.zeros(nv)
+    dv = np.zeros(nv)
+    first = True
+    for j in range(len(vs)):
+        c = coeffs[j]
+        if c == 0.0:
+            continue
+        x, y = vs[j], accs[j]
+        if first:
+            for i in range(nv):
+                dq[i] = c * x[i]
+                dv[i] = c * y[i]
+            first = False
+        else:
+            for i in range(nv):
+                dq[i] = dq[i] + c * x[i]
+                dv[i] = dv[i] + c * y[i]
     q_out[:] = q
     for j in range(2, parents.size):
         q_out[idx_q[j]] = q[idx_q[j]] + h * dq[idx_v[j]]
-    for i in range(v.size):
+    for i in range(nv):
         v_out[i] = v[i] + h * dv[i]
     _project_inplace(q_out, v_out, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR,
                      jp, support, f_parent, f_R, f_p)

@@ -127,6 +127,7 @@ class SSPKernel:
         self.gravity = np.array(model.gravity.linear, dtype=float)
         self._limits = act.limits.astype(float)
         self._anchor_key: tuple | None = None
+        self._coeff_cache: dict = {}
         self.split = False
         """True: :meth:`stage` calls :meth:`controller` and :meth:`dynamics` separately (same results, one more call;
         for a profile that times the two apart, as ``scripts/bench.py`` does), else one fused compiled call."""
@@ -232,11 +233,21 @@ class SSPKernel:
         project_on_support(q, v, *self._anchor(ssp, anchors), *self._proj_args[ssp], q_out, v_out)
         return q_out, v_out
 
-    def advance(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, dq: np.ndarray, dv: np.ndarray,
-                h: float) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`project` of (q integrated by h dq, v + h dv): the integrator's stage and step-end states
-        (``RungeKutta.step``'s ``advance``)."""
+    def advance(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, coeffs: tuple[float, ...],
+                vs: list[np.ndarray], accs: list[np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`project` of (q integrated by h sum c_j vs_j, v + h sum c_j accs_j): the integrator's stage and
+        step-end states (``RungeKutta.step``'s ``advance``)."""
         ssp = self._support_ssp[phase]
         q_out, v_out = np.empty_like(q), np.empty_like(v)
-        advance_on_support(q, v, dq, dv, h, *self._anchor(ssp, anchors), *self._proj_args[ssp], q_out, v_out)
+        n = len(vs)
+        advance_on_support(q, v, self._coeffs(coeffs, n), tuple(vs), tuple(accs), h, *self._anchor(ssp, anchors),
+                           *self._proj_args[ssp], q_out, v_out)
         return q_out, v_out
+
+    def _coeffs(self, coeffs: tuple[float, ...], n: int) -> np.ndarray:
+        """The first n Runge-Kutta coefficients as a float array (cached per tableau row)."""
+        key = (coeffs, n)
+        arr = self._coeff_cache.get(key)
+        if arr is None:
+            arr = self._coeff_cache[key] = np.array(coeffs[:n], dtype=float)
+        return arr
