@@ -542,10 +542,11 @@ def _flatten(x, path=""):
         yield path, x
 
 
-@pytest.fixture(scope="module")
-def sim1_walks(hm):
-    """Sim 1 walked to the end with the compiled kernel (counting kernel stages and fallbacks) and without."""
-    sc = load_scenario(PARAMS / "sim1.yaml")
+@pytest.fixture(scope="module", params=["sim1", "sim2", "sim3"])
+def full_walks(hm, request):
+    """A shipped scenario walked to the end with the compiled kernel (counting kernel stages and fallbacks) and
+    without."""
+    sc = load_scenario(PARAMS / f"{request.param}.yaml")
     sim_c = Simulator(hm, sc, compiled=True)
     calls = {"stage": 0, "fallback": 0}
     stage = sim_c.kernel.stage
@@ -563,11 +564,11 @@ def sim1_walks(hm):
 
 
 @needs_numba
-def test_whole_walk_compiled_equals_reference(sim1_walks):
-    """Sim 1 compiled vs reference: same completion, phase sequence and switch steps; every numeric summary entry
+def test_whole_walk_compiled_equals_reference(full_walks):
+    """Sims 1-3 compiled vs reference: same completion, phase sequence and switch steps; every numeric summary entry
     within 1e-9 (wall-time entries excepted), strings equal; logged q within TOL_WALK_Q; the compiled run did
     evaluate its single-support stages with the kernel."""
-    res_c, res_r, calls = sim1_walks
+    res_c, res_r, calls = full_walks
     assert res_r.completed and res_c.completed == res_r.completed and res_c.reason == res_r.reason
     assert res_c.steps == res_r.steps
     assert [(p.name, p.t_start, p.t_end) for p in res_c.phases] == [(p.name, p.t_start, p.t_end) for p in res_r.phases]
@@ -575,7 +576,7 @@ def test_whole_walk_compiled_equals_reference(sim1_walks):
     np.testing.assert_array_equal(a_c["phase"], a_r["phase"])
     np.testing.assert_array_equal(a_c["basic_phase"], a_r["basic_phase"])
     # ~3 stages per SSP step go through the kernel; saturated ones (a few %) fall back
-    assert calls["stage"] > 1500 and calls["fallback"] < 0.05 * calls["stage"], calls
+    assert calls["stage"] > 0.9 * 3 * res_c.steps and calls["fallback"] < 0.05 * calls["stage"], calls
     s_c = dict(_flatten(summarize(res_c, "sim1", "pinocchio")))
     s_r = dict(_flatten(summarize(res_r, "sim1", "pinocchio")))
     assert s_c.keys() == s_r.keys()
