@@ -193,9 +193,11 @@ def test_sigint_keeps_partial_results(tmp_path):
     # in the stepping loop however fast the simulator becomes
     scen = sim1_variant(tmp_path, "fine", lambda d: d["simulation"].__setitem__("step_s", 0.002))
     out = tmp_path / "out"
+    # the child gets SIGINT's default disposition back: a test run started in the background by a
+    # non-interactive shell inherits "ignore SIGINT", and Python then never raises KeyboardInterrupt
     proc = subprocess.Popen([sys.executable, str(WALK), str(scen), "--out", str(out), "--quiet", "--no-html",
                              "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
-                            cwd=ROOT)
+                            cwd=ROOT, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 60
         while not out.exists():  # walk.py creates the folder just before the simulation starts
