@@ -71,17 +71,8 @@ def mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 @njit
 def mtm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """A^T B for small matrices."""
-    k, n = A.shape
-    m = B.shape[1]
-    out = np.zeros((n, m))
-    for i in range(n):
-        for j in range(m):
-            s = 0.0
-            for l in range(k):
-                s += A[l, i] * B[l, j]
-            out[i, j] = s
-    return out
+    """A^T B for small matrices (:func:`mm` of the transposed view)."""
+    return mm(A.T, B)
 
 
 @njit
@@ -99,15 +90,8 @@ def mv(A: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 @njit
 def mtv(A: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """A^T x for a small matrix."""
-    k, n = A.shape
-    out = np.zeros(n)
-    for i in range(n):
-        s = 0.0
-        for l in range(k):
-            s += A[l, i] * x[l]
-        out[i] = s
-    return out
+    """A^T x for a small matrix (:func:`mv` of the transposed view)."""
+    return mv(A.T, x)
 
 
 @njit
