@@ -31,8 +31,6 @@ import math
 
 import numpy as np
 
-from humanoid_sim.kernel.tree import FREE_FLYER
-
 try:
     from numba import njit as _numba_njit
 except ImportError:  # pragma: no cover - the simulator then never calls this module
@@ -47,6 +45,10 @@ def njit(fn):
         return fn
     return _numba_njit(cache=True, nogil=True, error_model="numpy")(fn)
 
+
+FREE_FLYER = -1
+"""Axis code of the free-flyer root joint (revolute joints: 0, 1, 2 = x, y, z; -2: the universe).  Defined here:
+numba freezes module constants into the compiled code, so they must live in this file too."""
 F_PC17, F_O17, F_TPR, F_TPL, F_O1, F_O2, F_O3, F_O4 = range(8)
 """Rows of the frame arrays: the controller's task frames in ``command.TASK_FRAMES`` order."""
 LOG_SIZE = 45
@@ -397,6 +399,7 @@ def _cubic(c: np.ndarray, o: int, t: float) -> tuple[float, float]:
 
 @njit
 def _rz_into(R: np.ndarray, yaw: float) -> None:
+    """R = Rz(yaw) (``generator._rz``)."""
     c, s = math.cos(yaw), math.sin(yaw)
     R[0, 0], R[0, 1], R[0, 2] = c, -s, 0.0
     R[1, 0], R[1, 1], R[1, 2] = s, c, 0.0
@@ -444,7 +447,7 @@ def _body_task(motion: np.ndarray, vel: np.ndarray, fpos: np.ndarray, fparent: n
                weld: int, jcols: np.ndarray, jsign: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(J (6 x 26), drift (6,), velocity (6,)) of [linear motion of frame ``point``; angular motion of frame
     ``body``] in thesis joint space, the base eliminated through the weld of frame ``weld``."""
-    nv = jcols.size + 6
+    nv = motion.shape[2] - 1
     W = motion[weld]
     T = motion[point].copy()
     v6 = vel[point].copy()
@@ -544,7 +547,7 @@ def _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, 
         qdd[xs[i]] = qdd_s[i]
     # step 2: swing-leg joints for the swing toe point and toe body, given step 1 (5.1.1.1.2)
     J, drift, v6 = _body_task(motion, vel, fpos, fparent, toe_pt, other_weld, root, jcols, jsign)
-    drift = drift + Js_times(J, xs, qdd_s)
+    drift = drift + _cols_times(J, xs, qdd_s)
     Ab = np.zeros((12, no))
     rb = np.zeros(12)
     Jo = np.empty((6, no))
@@ -569,7 +572,7 @@ def _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, 
 
 
 @njit
-def Js_times(J: np.ndarray, cols: np.ndarray, x: np.ndarray) -> np.ndarray:
+def _cols_times(J: np.ndarray, cols: np.ndarray, x: np.ndarray) -> np.ndarray:
     """J[:, cols] @ x."""
     out = np.zeros(J.shape[0])
     for i in range(cols.size):

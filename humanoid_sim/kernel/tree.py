@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-FREE_FLYER = -1
-"""Axis code of the free-flyer root joint (revolute joints: 0, 1, 2 = x, y, z; -2: the universe)."""
+from humanoid_sim.kernel.compiled import FREE_FLYER
 
 
 class TreeConstants:
