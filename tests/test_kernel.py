@@ -504,13 +504,15 @@ def test_constructed_saturation_falls_back_to_reference(hm, walks, phase):
     scale = 0.5 * np.max(np.abs(T) / sim_ref.act.limits)
     assert scale < 1.0  # the original limits hold here
     for s in (sim_ref, sim_c):
-        s.act.limits = s.act.limits * scale
-    sim_c.kernel.limits = sim_c.kernel.limits * scale
+        s.act.limits = s.act.limits * scale  # replaced on the Actuators: the kernel follows (SSPKernel.limits)
     ko = sim_c.kernel.stage(ph, anchors, q, v, _pin_data(hm.model, q, v), sim_c.traj.ssp_table(k), t)
     assert ko.log[0] == 1.0
     ref = sim_ref.evaluate(k, ph, anchors, t, q, v)
     assert ref["sat"].any()
     _assert_same_result(sim_c.evaluate(k, ph, anchors, t, q, v), ref)
+    # an in-place change of the limits reaches the kernel as well (the same array): back to no saturation
+    sim_c.act.limits /= scale
+    assert sim_c.kernel.stage(ph, anchors, q, v, _pin_data(hm.model, q, v), sim_c.traj.ssp_table(k), t).log[0] == 0.0
 
 
 @needs_numba

@@ -125,7 +125,8 @@ class SSPKernel:
             if any(model.parents[j] == g[4] for j in range(model.njoints)):
                 raise ValueError(f"joint {model.names[g[4]]!r} of a universal actuator is not a leaf")
         self.gravity = np.array(model.gravity.linear, dtype=float)
-        self._limits = act.limits.astype(float)
+        self._act = act
+        self._limits = self._act_limits()
         self._anchor_key: tuple | None = None
         self._coeff_cache: dict = {}
         self.split = False
@@ -140,14 +141,27 @@ class SSPKernel:
 
     @property
     def limits(self) -> np.ndarray:
-        """Saturation limits of the thesis torques T (26,, N m) the stage checks: a copy of ``Actuators.limits``
-        taken at construction; assign a new array here to change them."""
-        return self._limits
+        """Saturation limits of the thesis torques T (26,, N m) the stage checks: ``Actuators.limits`` itself, so
+        that changing them there (in place or by assignment) changes them here too."""
+        return self._act.limits
 
     @limits.setter
     def limits(self, value: np.ndarray) -> None:
-        self._limits = np.asarray(value, dtype=float).copy()
-        self._build_args()
+        self._act.limits = np.asarray(value, dtype=float)
+        self._sync_limits()
+
+    def _act_limits(self) -> np.ndarray:
+        lim = self._act.limits
+        if not (isinstance(lim, np.ndarray) and lim.dtype == np.float64 and lim.shape == (26,)
+                and lim.flags.c_contiguous):
+            lim = self._act.limits = np.ascontiguousarray(lim, dtype=float).reshape(26)
+        return lim
+
+    def _sync_limits(self) -> None:
+        """Rebuild the call arguments if ``Actuators.limits`` was replaced by another array."""
+        if self._act.limits is not self._limits:
+            self._limits = self._act_limits()
+            self._build_args()
 
     def _build_args(self) -> None:
         """The constant trailing arguments of the compiled calls, per single-support phase."""
@@ -215,6 +229,7 @@ class SSPKernel:
         """Evaluate one single-support stage at (q, v) and time t (s); ``data`` holds
         computeJointJacobiansTimeVariation, crba and nonLinearEffects at (q, v), ``table`` the phase's
         ``ReferenceTrajectory.ssp_table``."""
+        self._sync_limits()
         if self.split:
             qdd = self.controller(phase, q, v, data, table, t)
             a, lam, T, tau, log = self.dynamics(phase, anchors, q, v, data, qdd)
