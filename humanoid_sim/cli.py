@@ -85,7 +85,7 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
 
         if not args.no_kernel and kernel.AVAILABLE and not kernel.cache_present() and not args.quiet:
             print("walk.py: compiling the simulation kernel (first run after an install or an edit of "
-                  "humanoid_sim/kernel/compiled.py: ~30 s, cached for later runs)", file=sys.stderr)
+                  "humanoid_sim/kernel/compiled.py: up to a minute, cached for later runs)", file=sys.stderr)
         sim = Simulator(hm, scenario, compiled=False if args.no_kernel else None)
     t_nominal = sim.traj.phases[-1].t_end
     bar = None

@@ -149,6 +149,8 @@ class Simulator:
                 if explicit:
                     raise RuntimeError(msg)
                 warnings.warn(msg + "; running on the reference path (about 4x slower)", RuntimeWarning, stacklevel=2)
+            else:
+                self.kernel.warm_up(self.q0, len(self.rk.tab.c))
 
     # ------------------------------------------------------------------ one stage
     def _references(self, k: int, t: float) -> tuple[TaskReference, TaskReference | None]:

@@ -16,7 +16,7 @@ Prints one JSON object:
   median of half the repeats), for comparison;
 - ``setup_s``: imports and model/scenario loading, reported separately; ``kernel_load_s``: the first simulator
   construction and a 0.05 s warm-up run (loading the compiled kernel from numba's disk cache and its start-up check;
-  the very first run after an install compiles it, ~30 s);
+  the very first run after an install compiles it, up to a minute);
 - ``breakdown``: fraction of the fast run's stepping time per part (trajectory, controller, dynamics, integrator,
   logging, other), from a cProfile run (profiling inflates the absolute time, not much the proportions).
 """

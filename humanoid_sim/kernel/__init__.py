@@ -34,7 +34,7 @@ except ImportError:  # pragma: no cover
 
 def cache_present() -> bool:
     """Whether numba's disk cache of the kernel seems to exist (its index files next to ``compiled.py`` or under
-    NUMBA_CACHE_DIR): when not, the first use compiles it (~30 s).  A heuristic for a progress message only."""
+    NUMBA_CACHE_DIR): when not, the first use compiles it (up to a minute).  A heuristic for a progress message only."""
     import os
     from pathlib import Path
 

@@ -26,7 +26,7 @@ import pinocchio as pin
 
 from humanoid_sim.actuators import Actuators
 from humanoid_sim.command import LAYOUTS, TASK_FRAMES, CommandAccelerations
-from humanoid_sim.contact.constraints import Anchors, Baumgarte
+from humanoid_sim.contact.constraints import Anchors, Baumgarte, record_anchors
 from humanoid_sim.kernel.compiled import (LOG_SIZE, advance_on_support, project_on_support, ssp_controller,
                                            ssp_dynamics, ssp_stage)
 from humanoid_sim.kernel.tree import TreeConstants
@@ -258,6 +258,17 @@ class SSPKernel:
         advance_on_support(q, v, self._coeffs(coeffs, n), tuple(vs), tuple(accs), h, *self._anchor(ssp, anchors),
                            *self._proj_args[ssp], q_out, v_out)
         return q_out, v_out
+
+    def warm_up(self, q: np.ndarray, n_stages: int) -> None:
+        """Compile (or load from numba's cache) every entry point a run will call, before it starts: the projection
+        and the advance for 1 .. n_stages stage rates (one compiled variant per count), so that no compilation
+        lands inside a timed run."""
+        phase = Phase.LFFSSP
+        anchors = record_anchors(self.hm.model, q, phase.contacts)
+        v = np.zeros(self.tree.nv)
+        self.project(phase, anchors, q, v)
+        for n in range(1, n_stages + 1):
+            self.advance(phase, anchors, q, v, (1.0,) * n, [v] * n, [v] * n, 0.0)
 
     def _coeffs(self, coeffs: tuple[float, ...], n: int) -> np.ndarray:
         """The first n Runge-Kutta coefficients as a float array (cached per tableau row)."""
