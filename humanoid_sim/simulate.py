@@ -10,8 +10,8 @@ At each step boundary the phase selector (6.1.1) decides: SSP -> DSP on touchdow
 velocity reset of 4.5 or an inelastic impact, the landing foot welded where it landed, the trajectory told
 the actual landing); DSP -> SSP on the hip-distance or overtime rule (no state change).
 
-Speed: when numba is installed, single-support stages that do not saturate (~98 % of them) run through the compiled
-twin of this module's reference path (:mod:`humanoid_sim.kernel`), together with each stage's integration and
+Speed: when numba is installed, stages where no actuator saturates (~99.5 % of them) run through the compiled twin
+of this module's reference path (:mod:`humanoid_sim.kernel`), together with each stage's integration and
 projection; the results equal the reference path's to round-off (``tests/test_kernel.py``), which
 ``Simulator(compiled=False)`` (``walk.py --no-kernel``) runs throughout.
 
@@ -99,7 +99,7 @@ class Simulator:
     """Runs one scenario on the Pinocchio fast path."""
 
     def __init__(self, hm: HumanoidModel, scenario: Scenario, compiled: bool | None = None) -> None:
-        """``compiled``: evaluate single-support stages with the compiled kernel (:mod:`humanoid_sim.kernel`);
+        """``compiled``: evaluate stages with the compiled kernel (:mod:`humanoid_sim.kernel`);
         None = whenever numba is installed and the kernel agrees with the reference path (:meth:`check_kernel`,
         else a RuntimeWarning), True = required (RuntimeError otherwise), False = always the reference path."""
         self.hm = hm
@@ -137,8 +137,8 @@ class Simulator:
         self._no_sat = np.zeros(26, dtype=bool)
         self._table: tuple = (None, None)
         if compiled:
-            from humanoid_sim.kernel.stage import SSPKernel
-            self.kernel = SSPKernel(hm, self.cmd, self.act, self.dyn.gains)
+            from humanoid_sim.kernel.stage import StageKernel
+            self.kernel = StageKernel(hm, self.cmd, self.act, self.dyn.gains, self._w_tau, self._w_lam)
             self._kdata = hm.model.createData()
             problem = self.check_kernel()
             if problem is not None:
@@ -170,19 +170,20 @@ class Simulator:
         inverse solution itself; otherwise the forward dynamics is solved for the saturated torques.
         """
         self.stage_evals += 1
-        if self.kernel is not None and not phase.is_double_support:
-            out = self.kernel.stage(phase, anchors, q, v, self._dynamics_pass(q, v), self._ssp_table(k), t)
+        if self.kernel is not None:
+            out = self.kernel.stage(phase, anchors, q, v, self._dynamics_pass(q, v), self._table_of(k), t)
             if out.log[0] == 0.0:  # else saturated or a singular cost: the reference path handles the stage
                 self.compiled_evals += 1
                 return {"a": out.a, "lam": out.lam, "thdd_c": out.thdd_c, "T_cmd": out.T_cmd, "T": out.T_cmd,
                         "sat": self._no_sat, "tau": out.tau, "kernel_log": out.log}
         return self._evaluate_reference(k, phase, anchors, t, q, v)
 
-    def _ssp_table(self, k: int) -> np.ndarray:
-        """The reference table of single-support phase k for the kernel (cached; the cache is dropped whenever the
-        trajectory learns a landing)."""
+    def _table_of(self, k: int) -> np.ndarray:
+        """The reference table of phase k for the kernel (``ssp_table`` / ``dsp_table``; cached, the cache is dropped
+        whenever the trajectory learns a landing)."""
         if self._table[0] != k:
-            self._table = (k, self.traj.ssp_table(k))
+            tr = self.traj
+            self._table = (k, tr.ssp_table(k) if tr.phases[k].is_ssp else tr.dsp_table(k))
         return self._table[1]
 
     def _evaluate_reference(self, k: int, phase: Phase, anchors, t: float, q: np.ndarray, v: np.ndarray) -> dict:
@@ -219,7 +220,7 @@ class Simulator:
         return d
 
     def check_kernel(self, tol: float = 1e-8) -> str | None:
-        """Compare the compiled stage with the reference path at one deterministic state per single-support phase
+        """Compare the compiled stage with the reference path at one deterministic state per phase
         (the initial posture with joint angles moved by ~0.02 rad and rates of ~0.1 rad/s, so that velocity terms
         count); None when every output agrees to ``tol`` relative (the two agree to ~1e-13 when unmodified), else
         what differs.  Guards against a reference formula edited without its compiled twin."""
@@ -227,13 +228,14 @@ class Simulator:
         q = self.q0.copy()
         q[7:] += rng.normal(0.0, 0.02, self.model.nq - 7)
         v = rng.normal(0.0, 0.1, self.model.nv)
-        for phase in (Phase.LFFSSP, Phase.RFFSSP):
+        for phase in Phase:
             k = next((i for i, ph in enumerate(self.traj.phases) if ph.name == phase.value), None)
             if k is None:
                 continue
             t = self.traj.phases[k].t_start + 0.4 * self.traj.phases[k].duration
             anchors = record_anchors(self.model, q, phase.contacts)
-            out = self.kernel.stage(phase, anchors, q, v, self._dynamics_pass(q, v), self.traj.ssp_table(k), t)
+            self._table = (None, None)
+            out = self.kernel.stage(phase, anchors, q, v, self._dynamics_pass(q, v), self._table_of(k), t)
             try:
                 ref = self._evaluate_reference(k, phase, anchors, t, q, v)
             except (ContactError, CommandError, np.linalg.LinAlgError):

@@ -5,15 +5,15 @@ The reference implementation of every formula is the readable NumPy/Pinocchio co
 thesis oracle and the independent checks (scipy minimisation, finite differences, MuJoCo) test.  Measured
 (``scripts/bench.py``), a single-support stage of that path costs ~300 us, of which Pinocchio's algorithms take
 ~15 us: the rest is the overhead of ~150 small NumPy and binding calls.  This package computes the same stage in
-one compiled call (:mod:`.compiled`, driven by :class:`.stage.SSPKernel`):
+one compiled call (:mod:`.compiled`, driven by :class:`.stage.StageKernel`), in all four phases:
 
 - Pinocchio still does the dynamics passes (``computeJointJacobiansTimeVariation``, ``crba``,
-  ``nonLinearEffects``) and the rare stages the kernel leaves to the reference path (double support, saturated
-  actuators);
+  ``nonLinearEffects``) and the rare stages the kernel leaves to the reference path (an actuator saturates: the
+  forward dynamics of the clipped torques);
 - the kernel does the glue: the phase's references (from ``ReferenceTrajectory.ssp_table``), placements by forward
   kinematics of the (fixed, revolute + free-flyer) tree, frame Jacobians and bias accelerations from Pinocchio's
-  joint Jacobians, the controller's cost rows and normal equations (thesis 5.1), the single-support inverse
-  dynamics (5.2), the thesis actuator torques T and the saturation check, the quantities the log records, and, per
+  joint Jacobians, the controller's cost rows and normal equations (thesis 5.1, with the closed chain in double
+  support), the computed torque under the phase's constraints (5.2), the thesis actuator torques T and the saturation check, the quantities the log records, and, per
   integrator stage, the Runge-Kutta combination, integration and projection onto the support foot.
 
 ``tests/test_kernel.py`` checks every kernel output against Pinocchio and the reference path at many states of

@@ -17,7 +17,7 @@ Kinematics of a free-flyer + axis-aligned revolute tree (conventions are Pinocch
   origin, angular = angular velocity / acceleration (world axes); LOCAL rows: the spatial motion resolved in the
   frame, linear part at its origin.
 
-The single-support stage (thesis 5.1 command accelerations, 5.2 computed torque, eq. 4.69 actuator torques) mirrors
+The stage (thesis 5.1 command accelerations, 5.2 computed torque, eq. 4.69 actuator torques; both phase kinds) mirrors
 the reference functions named in each docstring, formula for formula; the Python side is
 :mod:`humanoid_sim.kernel.stage`.
 
@@ -527,8 +527,6 @@ def _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, 
     Wq_a = fp_[o + ns + no:o + 2 * ns + no]
     Wq_b = fp_[o + 2 * ns + no:o + 2 * ns + 2 * no]
     o += 2 * (ns + no)
-    uWp, uWv, udt, uden, udt2, udt3 = (fp_[o:o + 10], fp_[o + 10:o + 20], fp_[o + 20:o + 30], fp_[o + 30:o + 40],
-                                       fp_[o + 40:o + 50], fp_[o + 50:o + 60])
     qdd = np.zeros(26)
     # step 1: stance-leg joints for Body 17 and its CoM (5.1.1.1.1)
     J, drift, v6 = _body_task(motion, vel, fpos, fparent, F_PC17, F_O17, root, jcols, jsign)
@@ -564,11 +562,108 @@ def _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, 
     for i in range(no):
         qdd[xo[i]] = qdd_o[i]
     qdd[stance_toe] = 0.0
-    for i in range(10):  # eq. 5.90 per upper-body joint
-        k = qu[i]
-        num = uWp[i] * th[k] * udt2[i] / 2 + uWp[i] * thd[k] * udt3[i] / 2 + uWv[i] * thd[k] * udt[i]
-        qdd[k] = -num / uden[i]
+    _upper_body(qdd, th, thd, qu, fp_[o:o + 60])
     return qdd
+
+
+@njit
+def _upper_body(qdd: np.ndarray, th: np.ndarray, thd: np.ndarray, qu: np.ndarray, up: np.ndarray) -> None:
+    """Eq. 5.90 per upper-body joint (``CommandAccelerations.upper``) into qdd[qu]; ``up`` = Wp, Wv, dt, den, dt^2,
+    dt^3 (10 each)."""
+    for i in range(10):
+        k = qu[i]
+        num = up[i] * th[k] * up[40 + i] / 2 + up[i] * thd[k] * up[50 + i] / 2 + up[10 + i] * thd[k] * up[20 + i]
+        qdd[k] = -num / up[30 + i]
+
+
+@njit
+def _controller_dsp(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_p, ref_v, ref_R, ip, fp_
+                    ) -> np.ndarray:
+    """Command accelerations theta_ddot_c (26,) of a double-support phase (``CommandAccelerations.compute``, DSP
+    branch, thesis 5.1.1.3): both chains to Body 17 in one cost over x = [stance chain; trailing chain], the closed
+    chain (eq. 5.59: the trailing toe body's acceleration through the stance chain is zero) by Lagrange multipliers
+    (eqs. 5.62/5.63).  ``ip``: root weld frame, other weld frame, stance toe, n_s, n_o, xs, xo, upper joints (10);
+    ``fp_``: dt, ha, the 24 row weights, dZ (n), W_q (n), upper-body numbers (60)."""
+    root, other_weld, stance_toe, ns, no = ip[0], ip[1], ip[2], ip[3], ip[4]
+    n = ns + no
+    x = ip[5:5 + n]
+    qu = ip[5 + n:15 + n]
+    dt, ha = fp_[0], fp_[1]
+    w_rows = fp_[2:26]
+    dZ = fp_[26:26 + n]
+    W_q = fp_[26 + n:26 + 2 * n]
+    A = np.zeros((24, n))
+    r = np.zeros(24)
+    Ja, da, va = _body_task(motion, vel, fpos, fparent, F_PC17, F_O17, root, jcols, jsign)
+    Js = np.empty((6, ns))
+    for i in range(ns):
+        Js[:, i] = Ja[:, x[i]]
+    ra = np.zeros(12)
+    Aa = np.zeros((12, ns))
+    _tracking_rows(Aa, ra, Js, da, fpos[F_PC17], va, fR[F_O17], ref_p, ref_v, ref_R, dt)
+    Jb, db, vb = _body_task(motion, vel, fpos, fparent, F_PC17, F_O17, other_weld, jcols, jsign)
+    Jo = np.empty((6, no))
+    for i in range(no):
+        Jo[:, i] = Jb[:, x[ns + i]]
+    rb = np.zeros(12)
+    Ab = np.zeros((12, no))
+    _tracking_rows(Ab, rb, Jo, db, fpos[F_PC17], vb, fR[F_O17], ref_p, ref_v, ref_R, dt)
+    A[:12, :ns] = Aa
+    A[12:, ns:] = Ab
+    r[:12] = ra
+    r[12:] = rb
+    dg = np.empty(n)
+    for i in range(n):
+        dg[i] = W_q[i] * ha * -(th[x[i]] + thd[x[i]] * dt)
+    Z, g = _normal(A, r, w_rows, dZ, dg)
+    Jc, dc, _ = _body_task(motion, vel, fpos, fparent, other_weld, other_weld, root, jcols, jsign)
+    K = np.zeros((n + 6, n + 6))
+    rhs = np.zeros(n + 6)
+    K[:n, :n] = Z
+    for i in range(n):
+        for c in range(6):
+            K[i, n + c] = Jc[c, x[i]]
+            K[n + c, i] = Jc[c, x[i]]
+    rhs[:n] = g
+    rhs[n:] = -dc
+    sol = _solve_dense(K, rhs)
+    qdd = np.zeros(26)
+    for i in range(n):
+        qdd[x[i]] = sol[i]
+    qdd[stance_toe] = 0.0
+    _upper_body(qdd, th, thd, qu, fp_[26 + 2 * n:86 + 2 * n])
+    return qdd
+
+
+@njit
+def _solve_dense(K: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x with K x = b (Gaussian elimination with partial pivoting, as LAPACK gesv); NaNs when K is singular."""
+    n = b.size
+    A = K.copy()
+    x = b.copy()
+    for c in range(n):
+        piv = c
+        for rr in range(c + 1, n):
+            if abs(A[rr, c]) > abs(A[piv, c]):
+                piv = rr
+        if A[piv, c] == 0.0:
+            return np.full(n, np.nan)
+        if piv != c:
+            for k in range(n):
+                A[c, k], A[piv, k] = A[piv, k], A[c, k]
+            x[c], x[piv] = x[piv], x[c]
+        for rr in range(c + 1, n):
+            f = A[rr, c] / A[c, c]
+            if f != 0.0:
+                for k in range(c, n):
+                    A[rr, k] -= f * A[c, k]
+                x[rr] -= f * x[c]
+    for c in range(n - 1, -1, -1):
+        acc = x[c]
+        for k in range(c + 1, n):
+            acc -= A[c, k] * x[k]
+        x[c] = acc / A[c, c]
+    return x
 
 
 @njit
@@ -582,24 +677,35 @@ def _cols_times(J: np.ndarray, cols: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 # ----------------------------------------------------------------------------------------------- dynamics
 @njit
-def _contact_rows(J, dJ, v, q, support_w, Rf, pf, Ra, pa, lock_q, lock_v, lock_anchor, kp, kd
-                  ) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Constraint Jacobian Jc (7 x nv: LOCAL weld rows, then the lock row), rhs shift r = Jdot v + Kd Jc v + Kp e
-    (7,), weld position and orientation errors (m, rad) (``ConstraintRows.evaluate``, one weld + one lock)."""
+def _contact_rows(J, dJ, v, q, support, fparent, fR, fpos, welds, anchor_R, anchor_p, lock_q, lock_v, lock_anchor, kp,
+                  kd) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Constraint Jacobian Jc (6 n_w + 1 x nv: the LOCAL rows of each weld of frame rows ``welds`` with anchors
+    ``anchor_R`` (n_w, 3, 3), ``anchor_p`` (n_w, 3), then the lock row), rhs shift r = Jdot v + Kd Jc v + Kp e, and
+    the largest weld position and orientation errors (m, rad) (``ConstraintRows.evaluate``: welds + one lock)."""
     nv = v.size
-    Jc = np.zeros((7, nv))
-    vel, acc = frame_motion_local(J, dJ, v, support_w, Rf, pf, Jc[:6])
-    Jc[6, lock_v] = 1.0
-    e = log6(mtm(Ra, Rf), mtv(Ra, pf - pa))
-    r = np.empty(7)
-    for i in range(6):
-        r[i] = kd * vel[i]
-        r[i] += acc[i]
-        r[i] += kp * e[i]
-    r[6] = kd * v[lock_v]  # the lock row has no drift (its Jacobian is constant)
-    r[6] += kp * (q[lock_q] - lock_anchor)
-    dp = pf - pa
-    return Jc, r, np.sqrt(dp[0] * dp[0] + dp[1] * dp[1] + dp[2] * dp[2]), np.sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
+    nw = welds.size
+    m = 6 * nw + 1
+    Jc = np.zeros((m, nv))
+    r = np.empty(m)
+    pos_err = 0.0
+    ori_err = 0.0
+    for w in range(nw):
+        f = welds[w]
+        Rf, pf = fR[f], fpos[f]
+        vel, acc = frame_motion_local(J, dJ, v, support[fparent[f]], Rf, pf, Jc[6 * w:6 * w + 6])
+        Ra, pa = anchor_R[w], anchor_p[w]
+        e = log6(mtm(Ra, Rf), mtv(Ra, pf - pa))
+        for i in range(6):
+            r[6 * w + i] = kd * vel[i]
+            r[6 * w + i] += acc[i]
+            r[6 * w + i] += kp * e[i]
+        dp = pf - pa
+        pos_err = max(pos_err, np.sqrt(dp[0] * dp[0] + dp[1] * dp[1] + dp[2] * dp[2]))
+        ori_err = max(ori_err, np.sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5]))
+    Jc[m - 1, lock_v] = 1.0
+    r[m - 1] = kd * v[lock_v]  # the lock row has no drift (its Jacobian is constant)
+    r[m - 1] += kp * (q[lock_q] - lock_anchor)
+    return Jc, r, pos_err, ori_err
 
 
 @njit
@@ -620,6 +726,48 @@ def _inverse_square(Jc, r, M, h, a_des, Rb, pb, Rf, pf, lock_v) -> tuple[np.ndar
     lam = np.empty(7)
     lam[:6] = lam_w
     lam[6] = g[lock_v]
+    return a, tau, lam
+
+
+@njit
+def _inverse_general(Jc, r, M, h, a_des, lock_v, w_tau, w_lam) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(a, tau, lam) of the double-support computed torque (``contact.inverse.solve_inverse``, general branch): the
+    free-joint accelerations closest to the desired ones that satisfy the constraints (KKT), then the weighted
+    minimum-norm [tau_act; lambda] of A x = M a + h, A = [S_act^T, J^T], weights ``w_tau`` (nv,, on the actuated
+    coordinates: all but the base and the locked joint) and ``w_lam`` (m,)."""
+    nv = a_des.size
+    m = r.size
+    K = np.zeros((nv + m, nv + m))
+    rhs = np.zeros(nv + m)
+    for i in range(6, nv):
+        if i != lock_v:
+            K[i, i] = 1.0
+            rhs[i] = a_des[i]
+    for k in range(m):
+        for i in range(nv):
+            K[i, nv + k] = Jc[k, i]
+            K[nv + k, i] = Jc[k, i]
+        rhs[nv + k] = -r[k]
+    a = _solve_dense(K, rhs)[:nv]
+    b = mv(M, a) + h
+    # A W^-1 A^T = sum over actuated i of e_i e_i^T / w_tau_i + J^T diag(1 / w_lam) J
+    Z = np.zeros((nv, nv))
+    for k in range(m):
+        wk = 1.0 / w_lam[k]
+        for i in range(nv):
+            ci = Jc[k, i] * wk
+            if ci != 0.0:
+                for j in range(nv):
+                    Z[i, j] += ci * Jc[k, j]
+    for i in range(6, nv):
+        if i != lock_v:
+            Z[i, i] += 1.0 / w_tau[i]
+    y = _cholesky_solve(Z, b)
+    tau = np.zeros(nv)
+    for i in range(6, nv):
+        if i != lock_v:
+            tau[i] = y[i] / w_tau[i]
+    lam = mv(Jc, y) / w_lam
     return a, tau, lam
 
 
@@ -685,7 +833,7 @@ def ssp_controller(q, v, J, dJ, tab, t, parents, axis, idx_q, jR, jp,
 
     Inputs: the state (q, v) at time t (s); Pinocchio's WORLD joint Jacobians J, dJ at that state; the phase's
     reference table (``ReferenceTrajectory.ssp_table``, queried at t + the two prediction times); the constant arrays
-    of :class:`SSPKernel`.  Work buffers filled for :func:`ssp_dynamics`: joint placements R, p,
+    of :class:`StageKernel`.  Work buffers filled for :func:`ssp_dynamics`: joint placements R, p,
     frame placements fR, fpos, and for the frames flagged in ``fneed`` (the ones this phase's tasks read) the frame
     [J | drift] ``motion`` and velocities ``vel`` (LOCAL_WORLD_ALIGNED)."""
     forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
@@ -707,29 +855,53 @@ def ssp_controller(q, v, J, dJ, tab, t, parents, axis, idx_q, jR, jp,
 
 @njit
 def ssp_dynamics(q, v, J, dJ, M_upper, h, qdd, anchor_R, anchor_p, lock_anchor, support, fparent, jcols, jsign,
-                 weld, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, R, p, fR,
+                 welds, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, R, p, fR,
                  fpos, vel, a_out, lam_out, T_out, tau_out, log):
     """Computed torque of a single-support stage for the command accelerations ``qdd``, written into a_out (nv,),
-    lam_out (7,), T_out (26,, T_cmd), tau_out (nv,) and log (LOG_SIZE,, zeroed here).  M_upper: Pinocchio's crba (upper triangle), h: nonLinearEffects; the work
-    buffers R ... vel as :func:`ssp_controller` left them."""
-    nv = v.size
-    a_des = np.zeros(nv)
-    for i in range(26):
-        a_des[jcols[i]] = jsign[i] * qdd[i]
+    lam_out (7,), T_out (26,, T_cmd), tau_out (nv,) and log (LOG_SIZE,, zeroed here).  M_upper: Pinocchio's crba
+    (upper triangle), h: nonLinearEffects; ``welds``: the support foot's weld frame row (one); the work buffers
+    R ... vel as :func:`ssp_controller` left them."""
+    M = _symmetric(M_upper)
+    a_des = _a_desired(qdd, jcols, jsign, v.size)
+    Jc, r, pos_err, ori_err = _contact_rows(J, dJ, v, q, support, fparent, fR, fpos, welds, anchor_R, anchor_p,
+                                            lock_q, lock_v, lock_anchor, kp, kd)
+    w = welds[0]
+    a, tau, lam = _inverse_square(Jc, r, M, h, a_des, R[1], p[1], fR[w], fpos[w], lock_v)
+    _finish(J, dJ, v, qdd, M, h, Jc, a, tau, lam, pos_err, ori_err, R, p, fR, fpos, vel, support, g1, g3, gs, hj,
+            arm_mass, arm_lever, arm_I, gravity, limits, a_out, lam_out, T_out, tau_out, log)
+
+
+@njit
+def _symmetric(M_upper: np.ndarray) -> np.ndarray:
+    """The symmetric joint-space inertia from the upper triangle crba fills."""
+    nv = M_upper.shape[0]
     M = M_upper.copy()
     for i in range(nv):
         for k in range(i):
             M[i, k] = M_upper[k, i]
-    Jc, r, pos_err, ori_err = _contact_rows(J, dJ, v, q, support[fparent[weld]], fR[weld], fpos[weld], anchor_R,
-                                            anchor_p, lock_q, lock_v, lock_anchor, kp, kd)
-    a, tau, lam = _inverse_square(Jc, r, M, h, a_des, R[1], p[1], fR[weld], fpos[weld], lock_v)
+    return M
+
+
+@njit
+def _a_desired(qdd: np.ndarray, jcols: np.ndarray, jsign: np.ndarray, nv: int) -> np.ndarray:
+    """Generalized accelerations (nv,) of the thesis command accelerations (``HumanoidModel.v_from_theta_dot``)."""
+    a = np.zeros(nv)
+    for i in range(jcols.size):
+        a[jcols[i]] = jsign[i] * qdd[i]
+    return a
+
+
+@njit
+def _finish(J, dJ, v, qdd, M, h, Jc, a, tau, lam, pos_err, ori_err, R, p, fR, fpos, vel, support, g1, g3, gs, hj,
+            arm_mass, arm_lever, arm_I, gravity, limits, a_out, lam_out, T_out, tau_out, log) -> None:
+    """The thesis torques T, the saturation flag, the dynamics residual and the logged quantities of a stage."""
     T = _thesis_torques(J, dJ, v, a, tau, R, p, support, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity)
     log[:] = 0.0
     for i in range(26):
         if T[i] > limits[i] or T[i] < -limits[i] or not np.isfinite(T[i]):
             log[0] = 1.0
-    if not np.isfinite(qdd).all():
-        log[0] = -1.0  # a cost's normal matrix was not positive definite
+    if not (np.isfinite(qdd).all() and np.isfinite(a).all() and np.isfinite(tau).all()):
+        log[0] = -1.0  # a normal matrix or KKT system was singular: the reference path reports it
     res = mv(M, a) + h - tau - mtv(Jc, lam)
     log[1], log[2], log[3] = pos_err, ori_err, np.max(np.abs(res))
     log[4:7] = fpos[F_PC17]
@@ -748,15 +920,62 @@ def ssp_dynamics(q, v, J, dJ, M_upper, h, qdd, anchor_R, anchor_p, lock_anchor, 
 @njit
 def ssp_stage(q, v, J, dJ, M_upper, h, tab, t, anchor_R, anchor_p, lock_anchor, parents, axis, idx_q, jR, jp,
               support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0, ip, fp_, fneed, R, p, fR, fpos, motion, vel,
-              weld, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, qdd_out,
+              welds, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, qdd_out,
               a_out, lam_out, T_out, tau_out, log) -> None:
     """:func:`ssp_controller` then :func:`ssp_dynamics` in one call (the simulator's hot path; the two halves stay
     separate functions so that a profile can time them apart)."""
     ssp_controller(q, v, J, dJ, tab, t, parents, axis, idx_q, jR, jp, support, fparent, fRp, fpp, jcols, jsign,
                    theta_q, theta0, ip, fp_, fneed, R, p, fR, fpos, motion, vel, qdd_out)
     ssp_dynamics(q, v, J, dJ, M_upper, h, qdd_out, anchor_R, anchor_p, lock_anchor, support, fparent, jcols, jsign,
-                 weld, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, R, p, fR,
+                 welds, lock_q, lock_v, kp, kd, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits, R, p, fR,
                  fpos, vel, a_out, lam_out, T_out, tau_out, log)
+
+
+@njit
+def dsp_references(tab: np.ndarray, t_a: float, p_a: np.ndarray, v_a: np.ndarray, R_a: np.ndarray) -> None:
+    """The hip reference of a double-support phase from its ``ReferenceTrajectory.dsp_table`` at global time t_a,
+    clamped to the phase's nominal window (``ReferenceTrajectory.hip_reference``, DSP branch: arc angle cubic d, yaw
+    cubic e)."""
+    t0, dur, hip_z, Ox, Oy, s, Rad, theta_cs = tab[0], tab[1], tab[2], tab[3], tab[4], tab[5], tab[6], tab[7]
+    tc = min(max(t_a - t0, 0.0), dur)
+    th, thd = _cubic(tab, 8, tc)
+    phi = theta_cs + s * th
+    yaw, yawd = _cubic(tab, 12, tc)
+    sp, cp = math.sin(phi), math.cos(phi)
+    p_a[0], p_a[1], p_a[2] = Ox + s * Rad * sp, Oy - s * Rad * cp, hip_z
+    v_a[0], v_a[1], v_a[2] = Rad * thd * cp, Rad * thd * sp, 0.0
+    v_a[3], v_a[4], v_a[5] = 0.0, 0.0, yawd
+    _rz_into(R_a, yaw)
+
+
+@njit
+def dsp_stage(q, v, J, dJ, M_upper, h, tab, t, anchor_R, anchor_p, lock_anchor, parents, axis, idx_q, jR, jp,
+              support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0, ip, fp_, fneed, R, p, fR, fpos, motion, vel,
+              welds, lock_q, lock_v, kp, kd, w_tau, w_lam, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits,
+              qdd_out, a_out, lam_out, T_out, tau_out, log) -> None:
+    """One double-support stage (the compiled twin of ``Simulator.evaluate`` in RFFDSP / LFFDSP): command
+    accelerations with the closed chain, the weighted minimum-norm computed torque under both welds and the lock,
+    the thesis torques and the log; arguments as :func:`ssp_stage` plus the torque-split weights."""
+    forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
+    for i in range(fparent.size):
+        fR[i], fpos[i] = frame_placement(R, p, fparent[i], fRp[i], fpp[i])
+        if fneed[i]:
+            vel[i] = frame_motion_lwa(J, dJ, v, support[fparent[i]], fpos[i], motion[i])
+    th = np.empty(26)
+    thd = np.empty(26)
+    for i in range(26):
+        th[i] = jsign[i] * q[theta_q[i]] - theta0[i]
+        thd[i] = jsign[i] * v[jcols[i]]
+    ref_p, ref_v, ref_R = np.empty(3), np.empty(6), np.empty((3, 3))
+    dsp_references(tab, t + fp_[0], ref_p, ref_v, ref_R)
+    qdd_out[:] = _controller_dsp(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_p, ref_v, ref_R, ip, fp_)
+    M = _symmetric(M_upper)
+    a_des = _a_desired(qdd_out, jcols, jsign, v.size)
+    Jc, r, pos_err, ori_err = _contact_rows(J, dJ, v, q, support, fparent, fR, fpos, welds, anchor_R, anchor_p,
+                                            lock_q, lock_v, lock_anchor, kp, kd)
+    a, tau, lam = _inverse_general(Jc, r, M, h, a_des, lock_v, w_tau, w_lam)
+    _finish(J, dJ, v, qdd_out, M, h, Jc, a, tau, lam, pos_err, ori_err, R, p, fR, fpos, vel, support, g1, g3, gs, hj,
+            arm_mass, arm_lever, arm_I, gravity, limits, a_out, lam_out, T_out, tau_out, log)
 
 
 @njit

@@ -1,20 +1,22 @@
-"""The Python side of the compiled single-support stage: constant tables and the calls into
-:mod:`humanoid_sim.kernel.compiled`.
+"""The Python side of the compiled stage: constant tables and the calls into :mod:`humanoid_sim.kernel.compiled`.
 
-The compiled twin of ``Simulator.evaluate`` for the two single-support phases (LFFSSP, RFFSSP) when no actuator
-saturates (see :mod:`humanoid_sim.kernel`); each compiled function mirrors a reference function:
+The compiled twin of ``Simulator.evaluate`` for all four phases when no actuator saturates (see
+:mod:`humanoid_sim.kernel`); each compiled function mirrors a reference function:
 
 - ``_body_task`` = ``TaskKinematics.reduce_pair`` + ``CommandAccelerations._body_task`` (base eliminated through
   the stance-foot weld, thesis joint order and signs);
 - ``_tracking_rows`` / ``_normal`` / ``_cholesky_solve`` = ``command._tracking_rows``, ``_CostRows.normal`` and
   ``_solve_spd`` (thesis eqs. 5.1-5.23);
-- ``_contact_rows`` = ``ConstraintRows.evaluate`` for one weld and one lock (Baumgarte rows);
+- ``_controller_dsp`` = the double-support branch of ``CommandAccelerations.compute`` (closed chain by KKT);
+- ``_contact_rows`` = ``ConstraintRows.evaluate`` for the phase's welds and its toe lock (Baumgarte rows);
 - ``_inverse_square`` = ``contact.inverse._solve_square`` (the unique single-support computed torque);
+- ``_inverse_general`` = ``contact.inverse.solve_inverse`` (double support: closest feasible accelerations, then
+  the weighted minimum-norm torques and multipliers);
 - ``_thesis_torques`` = ``Actuators.thesis_torques`` (T of eq. 4.69; shoulders from the arm's Newton-Euler
   equation, which is what RNEA's joint force of a leaf body is);
 - ``project_on_support`` = ``Simulator.project_on_support``.
 
-Double support (a few steps per phase change) and saturated stages (about 1 %) go to the reference path.
+Saturated stages (about 0.5 %) go to the reference path.
 """
 
 from __future__ import annotations
@@ -27,8 +29,8 @@ import pinocchio as pin
 from humanoid_sim.actuators import Actuators
 from humanoid_sim.command import LAYOUTS, TASK_FRAMES, CommandAccelerations
 from humanoid_sim.contact.constraints import Anchors, Baumgarte, record_anchors
-from humanoid_sim.kernel.compiled import (LOG_SIZE, advance_on_support, project_on_support, ssp_controller,
-                                           ssp_dynamics, ssp_stage)
+from humanoid_sim.kernel.compiled import (LOG_SIZE, advance_on_support, dsp_stage, project_on_support,
+                                           ssp_controller, ssp_dynamics, ssp_stage)
 from humanoid_sim.kernel.tree import TreeConstants
 from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import FOOT_SPECS, Phase
@@ -36,7 +38,7 @@ from humanoid_sim.phases import FOOT_SPECS, Phase
 FRAMES = list(TASK_FRAMES)
 """Frames the kernel evaluates: the controller's task frames (Pc_17, O_17, P_tpR, P_tpL, O_1, O_2, O_3, O_4), in
 the row order of ``compiled.F_PC17 ... F_O4``."""
-__all__ = ["FRAMES", "LOG_SIZE", "SSPKernel", "StageOutput"]
+__all__ = ["FRAMES", "LOG_SIZE", "StageKernel", "StageOutput"]
 
 
 # ----------------------------------------------------------------------------------------------- Python side
@@ -58,16 +60,18 @@ class StageOutput:
 
     @property
     def failed(self) -> bool:
-        """A cost's normal matrix was not positive definite (the reference path then raises its error)."""
+        """A normal matrix or KKT system was singular (the reference path then raises its error)."""
         return self.log[0] < 0.0
 
 
-class SSPKernel:
-    """The constant arrays of the compiled single-support stage and projection, built once per simulator from the
-    reference objects (so both paths use the same weights, layouts and actuator groups)."""
+class StageKernel:
+    """The constant arrays of the compiled stage and projection, built once per simulator from the reference objects
+    (so both paths use the same weights, layouts and actuator groups).  ``w_tau`` (nv,) and ``w_lambda`` (per
+    double-support phase, (13,)) are the double-support torque-split weights of the reference path."""
 
     def __init__(self, hm: HumanoidModel, cmd: CommandAccelerations, act: Actuators,
-                 gains: Baumgarte | None = None) -> None:
+                 gains: Baumgarte | None = None, w_tau: np.ndarray | None = None,
+                 w_lambda: dict[Phase, np.ndarray] | None = None) -> None:
         model = hm.model
         self.hm = hm
         self.tree = TreeConstants(model, FRAMES)
@@ -78,24 +82,35 @@ class SSPKernel:
         self.jsign = np.asarray(hm.theta_sign, dtype=float)
         self.theta_q = np.asarray(hm.theta_q_idx, dtype=np.int64)
         self.theta0 = cmd.theta0.copy()
+        self.w_tau = np.ascontiguousarray(np.ones(model.nv) if w_tau is None else w_tau, dtype=float)
+        self.w_lambda = {ph: np.ascontiguousarray(np.ones(ph.contacts.n_rows) if w_lambda is None else w_lambda[ph],
+                                                  dtype=float) for ph in (Phase.LFFDSP, Phase.RFFDSP)}
         self.phase = {}
         fi = tr.frame_index
-        for ph in (Phase.LFFSSP, Phase.RFFSSP):
+        up = cmd.params
+        upper = [up.upper_Wp, up.upper_Wv, up.upper_dt, cmd._upper_den, cmd._upper_dt2, cmd._upper_dt3]
+        for ph in Phase:
             lay = LAYOUTS[ph.value]
             P = cmd._problems[ph.value]
             wa, wb = cmd.params.steps[ph.value]
             ns, no = P.xs.size, P.xo.size
-            ip = np.concatenate([[fi[lay.root_weld], fi[lay.other_toe_point], fi[lay.other_weld], lay.stance_toe,
-                                  lay.other_toe, P.k_toe, ns, no], P.xs, P.xo, cmd._q_upper]).astype(np.int64)
-            up = cmd.params
-            fp_ = np.concatenate([[wa.dt, wb.dt, P.ha, P.hb, P.toe_p[0], P.toe_p[1], P.toe_v[0], P.toe_v[1],
-                                   P.theta0_toe], P.a.w[:, 0], P.b.w[:, 0], P.dZ_a, P.dZ_b, wa.W_q, wb.W_q,
-                                  up.upper_Wp, up.upper_Wv, up.upper_dt, cmd._upper_den, cmd._upper_dt2,
-                                  cmd._upper_dt3]).astype(float)
-            spec = FOOT_SPECS[ph.support_foot]
-            jid = model.getJointId(spec.toe_joint)
-            self.phase[ph] = (ip, fp_, fi[spec.main_frame], int(model.idx_qs[jid]), int(model.idx_vs[jid]),
-                              spec.main_frame, spec.toe_joint)
+            if ph.is_double_support:
+                ip = np.concatenate([[fi[lay.root_weld], fi[lay.other_weld], lay.stance_toe, ns, no], P.x,
+                                     cmd._q_upper]).astype(np.int64)
+                fp_ = np.concatenate([[wa.dt, P.ha], P.c.w[:, 0], P.dZ, P.W_q, *upper]).astype(float)
+            else:
+                ip = np.concatenate([[fi[lay.root_weld], fi[lay.other_toe_point], fi[lay.other_weld], lay.stance_toe,
+                                      lay.other_toe, P.k_toe, ns, no], P.xs, P.xo, cmd._q_upper]).astype(np.int64)
+                fp_ = np.concatenate([[wa.dt, wb.dt, P.ha, P.hb, P.toe_p[0], P.toe_p[1], P.toe_v[0], P.toe_v[1],
+                                       P.theta0_toe], P.a.w[:, 0], P.b.w[:, 0], P.dZ_a, P.dZ_b, wa.W_q, wb.W_q,
+                                      *upper]).astype(float)
+            contacts = ph.contacts
+            if len(contacts.locks) != 1 or contacts.welds[0] != FOOT_SPECS[ph.support_foot].main_frame:
+                raise ValueError(f"{ph.value}: the kernel expects the support foot's weld first and one toe lock")
+            jid = model.getJointId(contacts.locks[0])
+            welds = np.array([fi[f] for f in contacts.welds], dtype=np.int64)
+            self.phase[ph] = (ip, fp_, welds, int(model.idx_qs[jid]), int(model.idx_vs[jid]), contacts.welds,
+                              contacts.locks[0])
         # actuator groups (Actuators._groups / _batches in flat integer tables)
         g1, g3, gs = [], [], []
         hj = np.array(act._hj_unique, dtype=np.int64)
@@ -127,7 +142,7 @@ class SSPKernel:
         self.gravity = np.array(model.gravity.linear, dtype=float)
         self._act = act
         self._limits = self._act_limits()
-        self._anchor_key: tuple | None = None
+        self._anchor_cache: dict[Phase, tuple] = {}
         self._coeff_cache: dict = {}
         self.split = False
         """True: :meth:`stage` calls :meth:`controller` and :meth:`dynamics` separately (same results, one more call;
@@ -136,7 +151,6 @@ class SSPKernel:
         # work buffers shared by the controller and dynamics calls: R, p (joints), fR, fpos, motion, vel (frames)
         self._work = (np.empty((tr.nj, 3, 3)), np.empty((tr.nj, 3)), np.empty((nf, 3, 3)), np.empty((nf, 3)),
                       np.empty((nf, 6, tr.nv + 1)), np.empty((nf, 6)))
-        self._anchor_val: tuple = ()
         self._build_args()
 
     @property
@@ -164,29 +178,37 @@ class SSPKernel:
             self._build_args()
 
     def _build_args(self) -> None:
-        """The constant trailing arguments of the compiled calls, per single-support phase."""
+        """The constant trailing arguments of the compiled calls, per phase."""
         tr, w = self.tree, self._work
         self._ctrl_args, self._dyn_args, self._stage_args, self._proj_args = {}, {}, {}, {}
-        for ph, (ip, fp_, weld, lock_q, lock_v, _, _) in self.phase.items():
+        act = (self.g1, self.g3, self.gs, self.hj, self.arm_mass, self.arm_lever, self.arm_I, self.gravity,
+               self._limits)
+        for ph, (ip, fp_, welds, lock_q, lock_v, _, _) in self.phase.items():
             self._ctrl_args[ph] = (tr.parents, tr.axis, tr.idx_q, tr.jR, tr.jp, tr.support, tr.fparent, tr.fR, tr.fp,
                                    self.jcols, self.jsign, self.theta_q, self.theta0, ip, fp_,
                                    self._motion_frames(ph), *w)
-            self._dyn_args[ph] = (tr.support, tr.fparent, self.jcols, self.jsign, weld, lock_q, lock_v, self.kp,
-                                  self.kd, self.g1, self.g3, self.gs, self.hj, self.arm_mass, self.arm_lever,
-                                  self.arm_I, self.gravity, self._limits, w[0], w[1], w[2], w[3], w[5])
-            self._stage_args[ph] = self._ctrl_args[ph] + (weld, lock_q, lock_v, self.kp, self.kd, self.g1, self.g3,
-                                                          self.gs, self.hj, self.arm_mass, self.arm_lever, self.arm_I,
-                                                          self.gravity, self._limits)
+            if ph.is_double_support:
+                self._stage_args[ph] = self._ctrl_args[ph] + (welds, lock_q, lock_v, self.kp, self.kd, self.w_tau,
+                                                              self.w_lambda[ph]) + act
+            else:
+                self._dyn_args[ph] = (tr.support, tr.fparent, self.jcols, self.jsign, welds, lock_q, lock_v,
+                                      self.kp, self.kd) + act + (w[0], w[1], w[2], w[3], w[5])
+                self._stage_args[ph] = self._ctrl_args[ph] + (welds, lock_q, lock_v, self.kp, self.kd) + act
             self._proj_args[ph] = (lock_q, lock_v, tr.parents, tr.axis, tr.idx_q, tr.idx_v, tr.jR, tr.jp, tr.support,
-                                   tr.fparent[weld], tr.fR[weld], tr.fp[weld])
+                                   tr.fparent[welds[0]], tr.fR[welds[0]], tr.fp[welds[0]])
         self._support_ssp = {ph: Phase.LFFSSP if ph.support_foot == "L" else Phase.RFFSSP for ph in Phase}
 
     def _motion_frames(self, phase: Phase) -> np.ndarray:
         """Which frames' [J | drift] and velocity the phase's controller reads: the hip CoM (also logged), the stance
-        weld, the swing toe point, and the task bodies when they sit on another joint than their task point."""
+        weld, and the swing toe point with its body (single support) or the trailing toe body (double support)."""
         lay, fi, tr = LAYOUTS[phase.value], self.tree.frame_index, self.tree
         need = np.zeros(len(FRAMES), dtype=np.bool_)
-        for point, body in (("Pc_17", "O_17"), (lay.other_toe_point, lay.other_weld)):
+        pairs = [("Pc_17", "O_17")]
+        if phase.is_double_support:
+            need[fi[lay.other_weld]] = True
+        else:
+            pairs.append((lay.other_toe_point, lay.other_weld))
+        for point, body in pairs:
             need[fi[point]] = True
             if tr.fparent[fi[body]] != tr.fparent[fi[point]]:
                 need[fi[body]] = True
@@ -194,17 +216,17 @@ class SSPKernel:
         return need
 
     def _anchor(self, phase: Phase, anchors: Anchors) -> tuple[np.ndarray, np.ndarray, float]:
-        """(R, p, toe angle) of the support foot's anchors as arrays, re-read whenever the Anchors object, its
-        placement entry or its toe angle is not the one last read (the simulator replaces anchors at phase
-        changes; an SE3 modified in place would not be noticed)."""
-        _, _, _, _, _, frame, toe = self.phase[phase]
-        M = anchors.placements[frame]
+        """(R (n_w, 3, 3), p (n_w, 3), toe angle) of the phase's weld anchors and lock anchor as arrays, re-read
+        whenever the Anchors object, one of its placement entries or its toe angle is not the one last read for this
+        phase (the simulator replaces anchors at phase changes; an SE3 modified in place would not be noticed)."""
+        _, _, _, _, _, frames, toe = self.phase[phase]
+        Ms = tuple(anchors.placements[f] for f in frames)
         angle = anchors.joint_positions[toe]
-        key = self._anchor_key
-        if key is None or key[0] is not anchors or key[1] is not M or key[2] != angle:
-            self._anchor_val = (M.rotation.copy(), M.translation.copy(), float(angle))
-            self._anchor_key = (anchors, M, angle)
-        return self._anchor_val
+        hit = self._anchor_cache.get(phase)
+        if hit is None or hit[0] is not anchors or any(a is not b for a, b in zip(hit[1], Ms)) or hit[2] != angle:
+            val = (np.array([M.rotation for M in Ms]), np.array([M.translation for M in Ms]), float(angle))
+            hit = self._anchor_cache[phase] = (anchors, Ms, angle, val)
+        return hit[3]
 
     def controller(self, phase: Phase, q: np.ndarray, v: np.ndarray, data: pin.Data, table: np.ndarray, t: float
                    ) -> np.ndarray:
@@ -226,10 +248,11 @@ class SSPKernel:
 
     def stage(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, data: pin.Data, table: np.ndarray,
               t: float) -> StageOutput:
-        """Evaluate one single-support stage at (q, v) and time t (s); ``data`` holds
-        computeJointJacobiansTimeVariation, crba and nonLinearEffects at (q, v), ``table`` the phase's
-        ``ReferenceTrajectory.ssp_table``."""
+        """Evaluate one stage at (q, v) and time t (s); ``data`` holds computeJointJacobiansTimeVariation, crba and
+        nonLinearEffects at (q, v), ``table`` the phase's ``ReferenceTrajectory.ssp_table`` / ``dsp_table``."""
         self._sync_limits()
+        if phase.is_double_support:
+            return self.double_support(phase, anchors, q, v, data, table, t)
         if self.split:
             qdd = self.controller(phase, q, v, data, table, t)
             a, lam, T, tau, log = self.dynamics(phase, anchors, q, v, data, qdd)
@@ -241,11 +264,23 @@ class SSPKernel:
                   *self._stage_args[phase], qdd, a, lam, T, tau, log)
         return StageOutput(a, lam, qdd, T, tau, log)
 
+    def double_support(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, data: pin.Data,
+                       table: np.ndarray, t: float) -> StageOutput:
+        """One double-support stage (controller with the closed chain and the weighted minimum-norm computed
+        torque, one compiled call); arguments as :meth:`stage`."""
+        nv = v.size
+        qdd, a, lam, T, tau, log = (np.empty(26), np.empty(nv), np.empty(phase.contacts.n_rows), np.empty(26),
+                                    np.empty(nv), np.empty(LOG_SIZE))
+        dsp_stage(q, v, data.J, data.dJ, data.M, data.nle, table, t, *self._anchor(phase, anchors),
+                  *self._stage_args[phase], qdd, a, lam, T, tau, log)
+        return StageOutput(a, lam, qdd, T, tau, log)
+
     def project(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The compiled ``Simulator.project_on_support`` for the support foot of ``phase``."""
         ssp = self._support_ssp[phase]
+        aR, ap, alock = self._anchor(ssp, anchors)
         q_out, v_out = np.empty_like(q), np.empty_like(v)
-        project_on_support(q, v, *self._anchor(ssp, anchors), *self._proj_args[ssp], q_out, v_out)
+        project_on_support(q, v, aR[0], ap[0], alock, *self._proj_args[ssp], q_out, v_out)
         return q_out, v_out
 
     def advance(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, coeffs: tuple[float, ...],
@@ -253,9 +288,9 @@ class SSPKernel:
         """:meth:`project` of (q integrated by h sum c_j vs_j, v + h sum c_j accs_j): the integrator's stage and
         step-end states (``RungeKutta.step``'s ``advance``)."""
         ssp = self._support_ssp[phase]
+        aR, ap, alock = self._anchor(ssp, anchors)
         q_out, v_out = np.empty_like(q), np.empty_like(v)
-        n = len(vs)
-        advance_on_support(q, v, self._coeffs(coeffs, n), tuple(vs), tuple(accs), h, *self._anchor(ssp, anchors),
+        advance_on_support(q, v, self._coeffs(coeffs, len(vs)), tuple(vs), tuple(accs), h, aR[0], ap[0], alock,
                            *self._proj_args[ssp], q_out, v_out)
         return q_out, v_out
 

@@ -71,6 +71,10 @@ SSP_TABLE = ("t_start", "duration", "hip_z", "Ox", "Oy", "s", "R", "theta_cs", "
 centre (m), side sign, radius (m) and start angle (rad), the hip angle cubic c, then the swing foot's radius cubic
 g (used up to t_z, R_f after), rotation cubic f from theta_i, height quartic h and yaw cubic j (thesis 3.2.3)."""
 SSP_TABLE_SIZE = len(SSP_TABLE)
+DSP_TABLE = ("t_start", "duration", "hip_z", "Ox", "Oy", "s", "R", "theta_cs", "d3", "d2", "d1", "d0", "e3", "e2",
+             "e1", "e0")
+"""Layout of :meth:`ReferenceTrajectory.dsp_table`: as :data:`SSP_TABLE` up to theta_cs, then the hip angle cubic d
+and the Body-17 yaw cubic e of the double support (thesis 3.2.3.1-3.2.3.2)."""
 
 
 class TrajectoryError(ValueError):
@@ -463,6 +467,17 @@ class ReferenceTrajectory:
         if tab.size != SSP_TABLE_SIZE:
             raise AssertionError(f"ssp_table: {tab.size} numbers, layout expects {SSP_TABLE_SIZE}")
         return tab
+
+    def dsp_table(self, phase: int) -> np.ndarray:
+        """The numbers behind :meth:`hip_reference` in double-support ``phase`` as one float64 array (layout
+        :data:`DSP_TABLE`), for the compiled kernel.  Valid until the next :meth:`set_landing`."""
+        k = self._check_index(phase, len(self.phases), "phase")
+        ph = self.phases[k]
+        if ph.is_ssp:
+            raise TrajectoryError(f"phase: {k} ({ph.name}) is not a double support phase")
+        sg = self._segs[ph.segment]
+        return np.array([ph.t_start, ph.duration, self.hip_z, sg.Ox, sg.Oy, sg.s, sg.R, sg.theta_cs, *sg.d, *sg.e],
+                        dtype=float)
 
     @staticmethod
     def _swing_sample(sg: _Segment, t: float) -> tuple:
