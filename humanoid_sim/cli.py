@@ -30,7 +30,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", choices=("pinocchio", "thesis"), default="pinocchio",
                    help="dynamics engine: the fast Pinocchio path or the thesis's NumPy formulas (slow)")
     p.add_argument("--no-kernel", action="store_true",
-                   help="run every stage on the NumPy reference path instead of the compiled kernel (about 3x "
+                   help="run every stage on the NumPy reference path instead of the compiled kernel (about 4x "
                         "slower; to try a change to the controller or dynamics code before porting it to "
                         "humanoid_sim/kernel/compiled.py)")
     p.add_argument("--until", type=float, default=None, metavar="SECONDS",
