@@ -822,6 +822,25 @@ def _thesis_torques(J, dJ, v, a, tau, R, p, support, g1, g3, gs, hj, arm_mass, a
 
 # ----------------------------------------------------------------------------------------------- the stage
 @njit
+def _stage_state(q, v, J, dJ, parents, axis, idx_q, jR, jp, support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0,
+                 fneed, R, p, fR, fpos, motion, vel) -> tuple[np.ndarray, np.ndarray]:
+    """What every stage starts from: joint placements R, p, frame placements fR, fpos, and for the frames flagged in
+    ``fneed`` the LOCAL_WORLD_ALIGNED [J | drift] ``motion`` and velocities ``vel`` (all written into the work
+    buffers); returns the thesis joint deviations theta - theta0 and rates (26, each)."""
+    forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
+    for i in range(fparent.size):
+        fR[i], fpos[i] = frame_placement(R, p, fparent[i], fRp[i], fpp[i])
+        if fneed[i]:
+            vel[i] = frame_motion_lwa(J, dJ, v, support[fparent[i]], fpos[i], motion[i])
+    th = np.empty(26)
+    thd = np.empty(26)
+    for i in range(26):
+        th[i] = jsign[i] * q[theta_q[i]] - theta0[i]
+        thd[i] = jsign[i] * v[jcols[i]]
+    return th, thd
+
+
+@njit
 def ssp_controller(q, v, J, dJ, tab, t, parents, axis, idx_q, jR, jp,
                    support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0, ip, fp_, fneed, R, p, fR, fpos, motion,
                    vel, qdd_out):
@@ -836,16 +855,8 @@ def ssp_controller(q, v, J, dJ, tab, t, parents, axis, idx_q, jR, jp,
     of :class:`StageKernel`.  Work buffers filled for :func:`ssp_dynamics`: joint placements R, p,
     frame placements fR, fpos, and for the frames flagged in ``fneed`` (the ones this phase's tasks read) the frame
     [J | drift] ``motion`` and velocities ``vel`` (LOCAL_WORLD_ALIGNED)."""
-    forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
-    for i in range(fparent.size):
-        fR[i], fpos[i] = frame_placement(R, p, fparent[i], fRp[i], fpp[i])
-        if fneed[i]:
-            vel[i] = frame_motion_lwa(J, dJ, v, support[fparent[i]], fpos[i], motion[i])
-    th = np.empty(26)
-    thd = np.empty(26)
-    for i in range(26):
-        th[i] = jsign[i] * q[theta_q[i]] - theta0[i]
-        thd[i] = jsign[i] * v[jcols[i]]
+    th, thd = _stage_state(q, v, J, dJ, parents, axis, idx_q, jR, jp, support, fparent, fRp, fpp, jcols, jsign,
+                           theta_q, theta0, fneed, R, p, fR, fpos, motion, vel)
     ref_a_p, ref_a_v, ref_a_R = np.empty(3), np.empty(6), np.empty((3, 3))
     ref_b_p, ref_b_v, ref_b_R = np.empty(3), np.empty(6), np.empty((3, 3))
     ssp_references(tab, t + fp_[0], t + fp_[1], ref_a_p, ref_a_v, ref_a_R, ref_b_p, ref_b_v, ref_b_R)
@@ -956,16 +967,8 @@ def dsp_stage(q, v, J, dJ, M_upper, h, tab, t, anchor_R, anchor_p, lock_anchor, 
     """One double-support stage (the compiled twin of ``Simulator.evaluate`` in RFFDSP / LFFDSP): command
     accelerations with the closed chain, the weighted minimum-norm computed torque under both welds and the lock,
     the thesis torques and the log; arguments as :func:`ssp_stage` plus the torque-split weights."""
-    forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
-    for i in range(fparent.size):
-        fR[i], fpos[i] = frame_placement(R, p, fparent[i], fRp[i], fpp[i])
-        if fneed[i]:
-            vel[i] = frame_motion_lwa(J, dJ, v, support[fparent[i]], fpos[i], motion[i])
-    th = np.empty(26)
-    thd = np.empty(26)
-    for i in range(26):
-        th[i] = jsign[i] * q[theta_q[i]] - theta0[i]
-        thd[i] = jsign[i] * v[jcols[i]]
+    th, thd = _stage_state(q, v, J, dJ, parents, axis, idx_q, jR, jp, support, fparent, fRp, fpp, jcols, jsign,
+                           theta_q, theta0, fneed, R, p, fR, fpos, motion, vel)
     ref_p, ref_v, ref_R = np.empty(3), np.empty(6), np.empty((3, 3))
     dsp_references(tab, t + fp_[0], ref_p, ref_v, ref_R)
     qdd_out[:] = _controller_dsp(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_p, ref_v, ref_R, ip, fp_)

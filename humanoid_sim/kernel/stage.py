@@ -196,7 +196,6 @@ class StageKernel:
                 self._stage_args[ph] = self._ctrl_args[ph] + (welds, lock_q, lock_v, self.kp, self.kd) + act
             self._proj_args[ph] = (lock_q, lock_v, tr.parents, tr.axis, tr.idx_q, tr.idx_v, tr.jR, tr.jp, tr.support,
                                    tr.fparent[welds[0]], tr.fR[welds[0]], tr.fp[welds[0]])
-        self._support_ssp = {ph: Phase.LFFSSP if ph.support_foot == "L" else Phase.RFFSSP for ph in Phase}
 
     def _motion_frames(self, phase: Phase) -> np.ndarray:
         """Which frames' [J | drift] and velocity the phase's controller reads: the hip CoM (also logged), the stance
@@ -240,8 +239,7 @@ class StageKernel:
                  qdd: np.ndarray) -> tuple:
         """(a, lam, T_cmd, tau, log) of the computed torque for ``qdd`` right after :meth:`controller` at (q, v);
         ``data`` also holds crba and nonLinearEffects."""
-        nv = v.size
-        out = (np.empty(nv), np.empty(7), np.empty(26), np.empty(nv), np.empty(LOG_SIZE))
+        out = _outputs(v.size, 7)[1:]
         ssp_dynamics(q, v, data.J, data.dJ, data.M, data.nle, qdd, *self._anchor(phase, anchors), *self._dyn_args[phase],
                      *out)
         return out
@@ -257,9 +255,7 @@ class StageKernel:
             qdd = self.controller(phase, q, v, data, table, t)
             a, lam, T, tau, log = self.dynamics(phase, anchors, q, v, data, qdd)
             return StageOutput(a, lam, qdd, T, tau, log)
-        nv = v.size
-        qdd, a, lam, T, tau, log = (np.empty(26), np.empty(nv), np.empty(7), np.empty(26), np.empty(nv),
-                                    np.empty(LOG_SIZE))
+        qdd, a, lam, T, tau, log = _outputs(v.size, 7)
         ssp_stage(q, v, data.J, data.dJ, data.M, data.nle, table, t, *self._anchor(phase, anchors),
                   *self._stage_args[phase], qdd, a, lam, T, tau, log)
         return StageOutput(a, lam, qdd, T, tau, log)
@@ -268,30 +264,26 @@ class StageKernel:
                        table: np.ndarray, t: float) -> StageOutput:
         """One double-support stage (controller with the closed chain and the weighted minimum-norm computed
         torque, one compiled call); arguments as :meth:`stage`."""
-        nv = v.size
-        qdd, a, lam, T, tau, log = (np.empty(26), np.empty(nv), np.empty(phase.contacts.n_rows), np.empty(26),
-                                    np.empty(nv), np.empty(LOG_SIZE))
+        qdd, a, lam, T, tau, log = _outputs(v.size, phase.contacts.n_rows)
         dsp_stage(q, v, data.J, data.dJ, data.M, data.nle, table, t, *self._anchor(phase, anchors),
                   *self._stage_args[phase], qdd, a, lam, T, tau, log)
         return StageOutput(a, lam, qdd, T, tau, log)
 
     def project(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The compiled ``Simulator.project_on_support`` for the support foot of ``phase``."""
-        ssp = self._support_ssp[phase]
-        aR, ap, alock = self._anchor(ssp, anchors)
+        aR, ap, alock = self._anchor(phase, anchors)
         q_out, v_out = np.empty_like(q), np.empty_like(v)
-        project_on_support(q, v, aR[0], ap[0], alock, *self._proj_args[ssp], q_out, v_out)
+        project_on_support(q, v, aR[0], ap[0], alock, *self._proj_args[phase], q_out, v_out)
         return q_out, v_out
 
     def advance(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, coeffs: tuple[float, ...],
                 vs: list[np.ndarray], accs: list[np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`project` of (q integrated by h sum c_j vs_j, v + h sum c_j accs_j): the integrator's stage and
         step-end states (``RungeKutta.step``'s ``advance``)."""
-        ssp = self._support_ssp[phase]
-        aR, ap, alock = self._anchor(ssp, anchors)
+        aR, ap, alock = self._anchor(phase, anchors)
         q_out, v_out = np.empty_like(q), np.empty_like(v)
         advance_on_support(q, v, self._coeffs(coeffs, len(vs)), tuple(vs), tuple(accs), h, aR[0], ap[0], alock,
-                           *self._proj_args[ssp], q_out, v_out)
+                           *self._proj_args[phase], q_out, v_out)
         return q_out, v_out
 
     def warm_up(self, q: np.ndarray, n_stages: int) -> None:
@@ -312,3 +304,8 @@ class StageKernel:
         if arr is None:
             arr = self._coeff_cache[key] = np.array(coeffs[:n], dtype=float)
         return arr
+
+
+def _outputs(nv: int, m: int) -> tuple[np.ndarray, ...]:
+    """Fresh output arrays of one stage: theta_ddot_c (26,), a (nv,), lam (m,), T_cmd (26,), tau (nv,), log."""
+    return np.empty(26), np.empty(nv), np.empty(m), np.empty(26), np.empty(nv), np.empty(LOG_SIZE)
