@@ -76,17 +76,18 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
     from humanoid_sim.summary import summarize
 
     hm = load_model()
-    if args.engine == "thesis":
-        from humanoid_sim.thesis.walk import ThesisSimulator  # noqa: F401  (slow oracle engine)
-
-        sim = ThesisSimulator(hm, scenario)
-    else:
+    if args.engine == "pinocchio" and scenario.controller_class is None:
         from humanoid_sim import kernel
 
         if not args.no_kernel and kernel.AVAILABLE and not kernel.cache_present() and not args.quiet:
             print("walk.py: compiling the simulation kernel (first run after an install or an edit of "
                   "humanoid_sim/kernel/compiled.py: up to a minute, cached for later runs)", file=sys.stderr)
-        sim = Simulator(hm, scenario, compiled=False if args.no_kernel else None)
+    from humanoid_sim.controllers.loading import ControllerLoadError
+
+    try:
+        sim = Simulator(hm, scenario, compiled=False if args.no_kernel else None, engine=args.engine)
+    except ControllerLoadError as exc:
+        return _fail_input(f"{scenario.source}: {exc}")
     t_nominal = sim.traj.phases[-1].t_end
     bar = None
     progress = None

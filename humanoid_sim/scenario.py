@@ -33,7 +33,8 @@ import yaml
 from humanoid_sim.command import ControllerParamError, ControllerParams
 from humanoid_sim.trajectory import PathParamError, PathParams
 
-SECTIONS = ("name", "description", "path", "controller", "reset", "simulation", "phase_switch", "contact")
+SECTIONS = ("name", "description", "path", "controller", "reset", "simulation", "phase_switch", "contact",
+            "controller_class")
 REQUIRED = ("path", "controller", "reset")
 RESET_KEYS = ("Wadj_qdot_LFFSSP_to_RFFDSP", "Wadj_qdot_RFFSSP_to_LFFDSP")
 METHODS = ("ode3", "rk4", "euler")
@@ -88,6 +89,7 @@ class Scenario:
     switch: SwitchThresholds = field(default_factory=SwitchThresholds)
     contact: ContactSettings = field(default_factory=ContactSettings)
     source: str = "<dict>"
+    controller_class: str | None = None   # 'package.module:ClassName' of a user's controller; None = the thesis's
 
 
 # --------------------------------------------------------------------------------------------- value ranges
@@ -379,8 +381,15 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
         "dsp_overtime_fraction": Num("a fraction", 0.0, 10.0)})
     ct = _dataclass_section(src, "contact", doc.get("contact"), ContactSettings, {
         "friction_coefficient": Num("a friction coefficient", 0.0, 5.0, lo_open=True)})
+    cc = doc.get("controller_class")
+    if cc is not None:
+        from humanoid_sim.controllers.loading import DOTTED
+
+        if not isinstance(cc, str) or not DOTTED.match(cc):
+            raise ScenarioError(f"{src}: controller_class: expected 'package.module:ClassName' (a controller class "
+                                f"importable from PYTHONPATH), got {_show(cc)}")
     return Scenario(name=name, description=desc, path=path, controller=controller, W_adj=W_adj, simulation=sim,
-                    switch=sw, contact=ct, source=source)
+                    switch=sw, contact=ct, source=source, controller_class=cc)
 
 
 class _StrictSafeLoader(yaml.SafeLoader):

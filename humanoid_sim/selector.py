@@ -1,4 +1,4 @@
-"""The phase selector of thesis section 6.1.1, shared by both engines (``simulate`` and ``thesis.walk``).
+"""The phase selector of thesis section 6.1.1, shared by every engine (used by the stepping loop, ``humanoid_sim.loop``).
 
 It holds the current phase, the record of every phase as it actually happened, the phase-end targets, and the
 checks made at every step boundary: a non-finite or diverging state, a fall, a phase lasting far beyond its
@@ -60,6 +60,13 @@ class PhaseSelector:
         self.records = [PhaseRecord(0, self.phase.value, 0.0, nominal_start=first.t_start, nominal_end=first.t_end)]
         self.targets = traj.phase_targets(0)
         self.toe_start = toe_start
+        self.hold = False
+
+    def hold_in(self, phase: Phase) -> None:
+        """Stay in ``phase`` for the whole run (a standing test): no phase switch and no overtime check."""
+        self.hold = True
+        self.phase = phase
+        self.records[0].name = phase.value
 
     @property
     def info(self):
@@ -97,6 +104,8 @@ class PhaseSelector:
         if hip_p[2] < self.settings.fall_height_m:
             raise SimulationError(f"fall: hip CoM height {hip_p[2]:.3f} m below {self.settings.fall_height_m} m "
                                   f"at t = {t:.3f} s")
+        if self.hold:
+            return
         info = self.info
         elapsed = t - self.records[-1].t_start
         if elapsed > self.settings.max_phase_overtime * info.duration:
@@ -107,6 +116,8 @@ class PhaseSelector:
 
     def should_switch(self, t: float, hip_p: np.ndarray, swing_toe_p: np.ndarray | None) -> bool:
         """Section 6.1.1: touchdown ends an SSP (``swing_toe_p`` needed), the hip-distance or overtime rule a DSP."""
+        if self.hold:
+            return False
         info = self.info
         if info.swing_foot is not None:
             return ssp_should_end(swing_toe_p, self.toe_start, self.targets.swing_toe_end, self.thresholds)

@@ -36,7 +36,6 @@ t_import0 = time.perf_counter()
 from humanoid_sim.model import load_model  # noqa: E402
 from humanoid_sim.scenario import load_scenario  # noqa: E402
 from humanoid_sim.simulate import Simulator  # noqa: E402
-from humanoid_sim.thesis.walk import ThesisSimulator  # noqa: E402
 
 IMPORT_S = time.perf_counter() - t_import0
 ROOT = Path(__file__).resolve().parents[1]
@@ -45,7 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # except the logging step, which samples the trajectory for the logged references: those samples count twice,
 # under "trajectory" and "logging"; "other" is the rest of the loop: phase logic, the touchdown reset, glue).
 # Logging = the per-step record taken at the first stage plus the post-loop pass that derives the logged signals
-# (ground reactions, thesis coordinates, unwrapped yaws) in Simulator.run.
+# (ground reactions, thesis coordinates, unwrapped yaws) in the engine's build_log.
 PARTS = {
     "trajectory": [("humanoid_sim/trajectory/generator.py", "sample_global"),
                    ("humanoid_sim/trajectory/generator.py", "hip_reference"),
@@ -54,12 +53,12 @@ PARTS = {
     "dynamics": [("humanoid_sim/contact/forward.py", "prepare"), ("humanoid_sim/contact/forward.py", "inverse_prepared"),
                  ("humanoid_sim/contact/forward.py", "forward_prepared"),
                  ("humanoid_sim/actuators.py", "thesis_torques"), ("humanoid_sim/actuators.py", "torque_map"),
-                 ("humanoid_sim/simulate.py", "_dynamics_pass"), ("humanoid_sim/kernel/stage.py", "dynamics"),
+                 ("humanoid_sim/controllers/thesis.py", "_dynamics_pass"), ("humanoid_sim/kernel/stage.py", "dynamics"),
                  # double-support stages (~1.5 % of them) are one compiled call, controller included
                  ("humanoid_sim/kernel/stage.py", "double_support")],
-    "integrator": [("humanoid_sim/simulate.py", "project_on_support"), ("humanoid_sim/kernel/stage.py", "project"),
+    "integrator": [("humanoid_sim/engines/weld.py", "project_on_support"), ("humanoid_sim/kernel/stage.py", "project"),
                    ("humanoid_sim/kernel/stage.py", "advance"), ("pinocchio", "integrate")],
-    "logging": [("humanoid_sim/simulate.py", "_stage0_record"), ("humanoid_sim/simulate.py", "_build_log")],
+    "logging": [("humanoid_sim/engines/weld.py", "_stage0_record"), ("humanoid_sim/engines/weld.py", "build_log")],
 }
 
 
@@ -82,7 +81,7 @@ def breakdown(hm, scenario, t_end: float | None) -> dict[str, float]:
     sim.run(t_end=t_end)
     prof.disable()
     stats = pstats.Stats(prof)
-    total = _cumtime(stats, "humanoid_sim/simulate.py", "run")
+    total = _cumtime(stats, "humanoid_sim/loop.py", "run")
     parts = {k: sum(_cumtime(stats, f, fn) for f, fn in v) for k, v in PARTS.items()}
     parts["other"] = max(total - sum(parts.values()), 0.0)
     return {k: round(v / total, 3) for k, v in parts.items()}
@@ -127,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         ref_walls.append(time.perf_counter() - w0)
     ref_rtf = ref_res.sim_time / statistics.median(ref_walls)
 
-    osim = ThesisSimulator(hm, load_scenario(args.scenario))
+    osim = Simulator(hm, load_scenario(args.scenario), engine="thesis")
     w0 = time.perf_counter()
     ores = osim.run(t_end=args.oracle_window)
     owall = time.perf_counter() - w0

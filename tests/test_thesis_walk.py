@@ -1,4 +1,4 @@
-"""The whole walk on the thesis oracle (humanoid_sim.thesis.walk) against the Pinocchio fast path.
+"""The whole walk on the thesis oracle (humanoid_sim.engines.oracle) against the Pinocchio fast path.
 
 One module fixture runs Simulation 1 for 2 s on both engines (~20 s of oracle wall time).  Findings the tests
 pin down:
@@ -33,7 +33,7 @@ from humanoid_sim.results import SIGNALS, load_results
 from humanoid_sim.scenario import load_scenario
 from humanoid_sim.simulate import Simulator
 from humanoid_sim.thesis import FootState
-from humanoid_sim.thesis.walk import ThesisSimulator, ThesisWalkError, single_threaded_blas
+from humanoid_sim.engines.oracle import ThesisWalkError, single_threaded_blas
 
 ROOT = Path(__file__).resolve().parents[1]
 SIM1 = ROOT / "scripts" / "params" / "sim1.yaml"
@@ -50,7 +50,7 @@ def scenario():
 def runs(hm, scenario):
     """(fast result, oracle result, oracle simulator) for sim1 until T_END."""
     fast = Simulator(hm, scenario).run(t_end=T_END)
-    sim = ThesisSimulator(hm, scenario)
+    sim = Simulator(hm, scenario, engine="thesis")
     thesis = sim.run(t_end=T_END)
     return fast, thesis, sim
 
@@ -108,7 +108,7 @@ def test_two_second_hip_paths_within_1mm(runs):
     assert a["saturated"].any() and np.array_equal(a["saturated"], b["saturated"])
 
 
-def _evaluate_both(hm, scenario, sim: ThesisSimulator, log: dict, row: int):
+def _evaluate_both(hm, scenario, sim: Simulator, log: dict, row: int):
     k = int(log["phase"][row])
     phase = Phase(sim.traj.phases[k].name)
     feet = {"R": (log["foot_R_R"][row], log["toe_R_p"][row]), "L": (log["foot_L_R"][row], log["toe_L_p"][row])}
@@ -116,10 +116,12 @@ def _evaluate_both(hm, scenario, sim: ThesisSimulator, log: dict, row: int):
     theta, thd, t = log["theta"][row], log["theta_dot"][row], float(log["t"][row])
     fast = Simulator(hm, scenario)
     fast.traj = sim.traj              # identical references (the oracle run's landings)
-    q, v = sim.pin_state(phase, fixed, theta, thd)
+    q, v = sim.engine.pin_state(phase, fixed, theta, thd)
     anchors = record_anchors(hm.model, q, phase.contacts)
     with single_threaded_blas():
-        out_t = sim.evaluate(k, phase, fixed, t, theta, thd)
+        st = sim.engine.stage(sim.controller, k, phase, fixed, t, theta, thd)
+    out_t = {"thdd": st["fd"].theta_ddot, "T": st["cmd"].T, "T_cmd": st["cmd"].T_cmd, "sat": st["cmd"].saturated,
+             "thdd_c": st["cmd"].theta_ddot_cmd}
     out_f = fast.evaluate(k, phase, anchors, t, q, v)
     return phase, out_t, out_f
 
@@ -163,7 +165,7 @@ def test_logged_signals_are_consistent(hm, runs):
     log = thesis.log.arrays()
     model, data = hm.model, hm.model.createData()
     f17 = hm.frame_id("Pc_17")
-    masses = sim.params.mass
+    masses = sim.engine.params.mass
     for row in range(0, len(log["t"]), 10):
         q, v = log["q"][row], log["v"][row]
         assert np.array_equal(hm.theta_from_q(q), log["theta"][row])
@@ -177,9 +179,9 @@ def test_logged_signals_are_consistent(hm, runs):
         phase = Phase(sim.traj.phases[k].name)
         feet = {"R": (log["foot_R_R"][row], log["toe_R_p"][row]), "L": (log["foot_L_R"][row], log["toe_L_p"][row])}
         fixed = {f: FootState(*feet[f]) for f in phase.stance_feet}
-        kin = sim.engine.kinematics(phase.value, log["theta"][row], log["theta_dot"][row], fixed,
+        kin = sim.engine.engine.kinematics(phase.value, log["theta"][row], log["theta_dot"][row], fixed,
                                     theta_ddot=log["theta_ddot"][row])
-        rate = sum(m * (kin.a[f"c{b}"] + np.array([0.0, 0.0, sim.params.g])) for b, m in masses.items())
+        rate = sum(m * (kin.a[f"c{b}"] + np.array([0.0, 0.0, sim.engine.params.g])) for b, m in masses.items())
         f_ground = log["foot_wrench"][row][:, :3].sum(axis=0)
         # ~600 N of forces from a well-conditioned 122 x 122 solve: measured 7e-13 N; 1e-6 N is still round-off
         assert np.abs(f_ground - rate).max() < 1e-6, (row, f_ground, rate)
@@ -196,7 +198,7 @@ def test_refuses_inelastic_law(hm, scenario):
 
     sc = replace(scenario, simulation=replace(scenario.simulation, impact_law="inelastic"))
     with pytest.raises(ThesisWalkError, match="inelastic"):
-        ThesisSimulator(hm, sc)
+        Simulator(hm, sc, engine="thesis")
 
 
 def test_walk_cli_thesis_engine(tmp_path):

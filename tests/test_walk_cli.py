@@ -162,25 +162,25 @@ def test_singular_controller_exits_1_even_with_an_empty_log(tmp_path):
 @pytest.mark.parametrize("fault, reason_start", [("nan", "non-finite"),
                                                  ("singular", "SingularConstraintError at t = ")])
 def test_injected_runtime_faults_exit_1(tmp_path, monkeypatch, fault, reason_start):
-    """Fault injection into the controller/dynamics evaluation after 60 healthy evaluations: a NaN acceleration
+    """Fault injection into the weld engine's dynamics after 60 healthy evaluations: a NaN acceleration
     (a diverging motion) or a rank-deficient constraint system.  The run stops with exit 1, the one-line
     reason, and the steps before the fault on disk."""
-    from humanoid_sim import simulate
     from humanoid_sim.contact import SingularConstraintError
+    from humanoid_sim.engines import weld
 
-    original = simulate.Simulator.evaluate
+    original = weld.WeldEngine._motion
     calls = {"n": 0}
 
-    def evaluate(self, *args, **kwargs):
+    def motion(self, *args, **kwargs):
         calls["n"] += 1
-        out = original(self, *args, **kwargs)
+        a, lam = original(self, *args, **kwargs)
         if calls["n"] > 60:
             if fault == "singular":
                 raise SingularConstraintError("injected: constraint Jacobian rank 12 < 13 rows")
-            out = {**out, "a": np.full_like(out["a"], np.nan)}
-        return out
+            a = np.full_like(a, np.nan)
+        return a, lam
 
-    monkeypatch.setattr(simulate.Simulator, "evaluate", evaluate)
+    monkeypatch.setattr(weld.WeldEngine, "_motion", motion)
     out = tmp_path / "out"
     assert main([str(SIM1), "--out", str(out), "--quiet", "--no-html", "--no-plots", "--until", "1"]) == 1
     summary, res = check_partial(out, reason_start)

@@ -22,7 +22,8 @@ from humanoid_sim.contact.wrenches import MIN_NORMAL_FORCE, GroundReactionLog
 from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import Phase
 from humanoid_sim.scenario import load_scenario
-from humanoid_sim.simulate import BASIC, BODY_FRAMES, FEET, Simulator
+from humanoid_sim.engines.weld import BASIC, BODY_FRAMES, FEET
+from humanoid_sim.simulate import Simulator
 
 TOL = 1e-9
 PHASE_OF_BASIC = {i: p for p, i in BASIC.items()}

@@ -18,7 +18,7 @@ one compiled call (:mod:`.compiled`, driven by :class:`.stage.StageKernel`), in 
 
 ``tests/test_kernel.py`` checks every kernel output against Pinocchio and the reference path at many states of
 real walks, and a whole walk against the reference walk; ``Simulator`` repeats a short comparison at start-up
-(``Simulator.check_kernel``).  Without numba installed the simulator uses the reference path (:data:`AVAILABLE`
+(``ThesisController.check_kernel``).  Without numba installed the simulator uses the reference path (:data:`AVAILABLE`
 is then False).
 """
 

@@ -964,7 +964,7 @@ def dsp_stage(q, v, J, dJ, M_upper, h, tab, t, anchor_R, anchor_p, lock_anchor, 
               support, fparent, fRp, fpp, jcols, jsign, theta_q, theta0, ip, fp_, fneed, R, p, fR, fpos, motion, vel,
               welds, lock_q, lock_v, kp, kd, w_tau, w_lam, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity, limits,
               qdd_out, a_out, lam_out, T_out, tau_out, log) -> None:
-    """One double-support stage (the compiled twin of ``Simulator.evaluate`` in RFFDSP / LFFDSP): command
+    """One double-support stage (the compiled twin of ``ThesisController.evaluate`` in RFFDSP / LFFDSP): command
     accelerations with the closed chain, the weighted minimum-norm computed torque under both welds and the lock,
     the thesis torques and the log; arguments as :func:`ssp_stage` plus the torque-split weights."""
     th, thd = _stage_state(q, v, J, dJ, parents, axis, idx_q, jR, jp, support, fparent, fRp, fpp, jcols, jsign,
@@ -984,7 +984,7 @@ def dsp_stage(q, v, J, dJ, M_upper, h, tab, t, anchor_R, anchor_p, lock_anchor, 
 @njit
 def _project_inplace(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR, jp,
                      support, f_parent, f_R, f_p) -> None:
-    """Put (q, v) on the support foot in place (``Simulator.project_on_support``): toe lock at its anchor angle with
+    """Put (q, v) on the support foot in place (``WeldEngine.project_on_support``): toe lock at its anchor angle with
     zero rate, base placement re-derived from the foot's anchor (anchor * oMf^-1 * base: the base's own value
     cancels), base twist from the joint rates through the foot's LOCAL Jacobian."""
     q[lock_q] = lock_anchor

@@ -1,6 +1,6 @@
 """The Python side of the compiled stage: constant tables and the calls into :mod:`humanoid_sim.kernel.compiled`.
 
-The compiled twin of ``Simulator.evaluate`` for all four phases when no actuator saturates (see
+The compiled twin of ``ThesisController.evaluate`` for all four phases when no actuator saturates (see
 :mod:`humanoid_sim.kernel`); each compiled function mirrors a reference function:
 
 - ``_body_task`` = ``TaskKinematics.reduce_pair`` + ``CommandAccelerations._body_task`` (base eliminated through
@@ -14,7 +14,7 @@ The compiled twin of ``Simulator.evaluate`` for all four phases when no actuator
   the weighted minimum-norm torques and multipliers);
 - ``_thesis_torques`` = ``Actuators.thesis_torques`` (T of eq. 4.69; shoulders from the arm's Newton-Euler
   equation, which is what RNEA's joint force of a leaf body is);
-- ``project_on_support`` = ``Simulator.project_on_support``.
+- ``project_on_support`` = ``WeldEngine.project_on_support``.
 
 Saturated stages (about 0.5 %) go to the reference path.
 """
@@ -38,13 +38,13 @@ from humanoid_sim.phases import FOOT_SPECS, Phase
 FRAMES = list(TASK_FRAMES)
 """Frames the kernel evaluates: the controller's task frames (Pc_17, O_17, P_tpR, P_tpL, O_1, O_2, O_3, O_4), in
 the row order of ``compiled.F_PC17 ... F_O4``."""
-__all__ = ["FRAMES", "LOG_SIZE", "StageKernel", "StageOutput"]
+__all__ = ["FRAMES", "LOG_SIZE", "StageKernel", "StageOutput", "SupportKernel"]
 
 
 # ----------------------------------------------------------------------------------------------- Python side
 @dataclass
 class StageOutput:
-    """What one kernel stage returns (SI units; see ``Simulator.evaluate``)."""
+    """What one kernel stage returns (SI units; see ``ThesisController.evaluate``)."""
 
     a: np.ndarray
     lam: np.ndarray
@@ -62,6 +62,82 @@ class StageOutput:
     def failed(self) -> bool:
         """A normal matrix or KKT system was singular (the reference path then raises its error)."""
         return self.log[0] < 0.0
+
+
+class SupportKernel:
+    """The compiled projection onto the support foot and the compiled Runge-Kutta advance of the weld engine
+    (``WeldEngine.project_on_support``), independent of any controller."""
+
+    def __init__(self, hm: HumanoidModel, tree: TreeConstants | None = None) -> None:
+        model = hm.model
+        self.hm = hm
+        self.tree = tree if tree is not None else TreeConstants(model, FRAMES)
+        tr = self.tree
+        fi = tr.frame_index
+        self._frames: dict[Phase, tuple] = {}
+        self._proj_args: dict[Phase, tuple] = {}
+        for ph in Phase:
+            contacts = ph.contacts
+            if len(contacts.locks) != 1 or contacts.welds[0] != FOOT_SPECS[ph.support_foot].main_frame:
+                raise ValueError(f"{ph.value}: the kernel expects the support foot's weld first and one toe lock")
+            jid = model.getJointId(contacts.locks[0])
+            w0 = fi[contacts.welds[0]]
+            self._frames[ph] = (contacts.welds, contacts.locks[0])
+            self._proj_args[ph] = (int(model.idx_qs[jid]), int(model.idx_vs[jid]), tr.parents, tr.axis, tr.idx_q,
+                                   tr.idx_v, tr.jR, tr.jp, tr.support, tr.fparent[w0], tr.fR[w0], tr.fp[w0])
+        self._anchor_cache: dict[Phase, tuple] = {}
+        self._coeff_cache: dict = {}
+
+    def anchor(self, phase: Phase, anchors: Anchors) -> tuple[np.ndarray, np.ndarray, float]:
+        """(R (n_w, 3, 3), p (n_w, 3), toe angle) of the phase's weld anchors and lock anchor as arrays, re-read
+        whenever the Anchors object, one of its placement entries or its toe angle is not the one last read for this
+        phase (the simulator replaces anchors at phase changes; an SE3 modified in place would not be noticed)."""
+        frames, toe = self._frames[phase]
+        Ms = tuple(anchors.placements[f] for f in frames)
+        angle = anchors.joint_positions[toe]
+        hit = self._anchor_cache.get(phase)
+        if hit is None or hit[0] is not anchors or any(a is not b for a, b in zip(hit[1], Ms)) or hit[2] != angle:
+            val = (np.array([M.rotation for M in Ms]), np.array([M.translation for M in Ms]), float(angle))
+            hit = self._anchor_cache[phase] = (anchors, Ms, angle, val)
+        return hit[3]
+
+    def project(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The compiled ``WeldEngine.project_on_support`` for the support foot of ``phase``."""
+        aR, ap, alock = self.anchor(phase, anchors)
+        q_out, v_out = np.empty_like(q), np.empty_like(v)
+        project_on_support(q, v, aR[0], ap[0], alock, *self._proj_args[phase], q_out, v_out)
+        return q_out, v_out
+
+    def advance(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, coeffs: tuple[float, ...],
+                vs: list[np.ndarray], accs: list[np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`project` of (q integrated by h sum c_j vs_j, v + h sum c_j accs_j): the integrator's stage and
+        step-end states (``RungeKutta.step``'s ``advance``)."""
+        aR, ap, alock = self.anchor(phase, anchors)
+        q_out, v_out = np.empty_like(q), np.empty_like(v)
+        advance_on_support(q, v, self._coeffs(coeffs, len(vs)), tuple(vs), tuple(accs), h, aR[0], ap[0], alock,
+                           *self._proj_args[phase], q_out, v_out)
+        return q_out, v_out
+
+    def warm_up(self, q: np.ndarray, n_stages: int) -> None:
+        """Compile (or load from numba's cache) every entry point a run will call, before it starts: the projection
+        and the advance for 1 .. n_stages stage rates (one compiled variant per count), so that no compilation
+        lands inside a timed run."""
+        phase = Phase.LFFSSP
+        anchors = record_anchors(self.hm.model, q, phase.contacts)
+        v = np.zeros(self.tree.nv)
+        self.project(phase, anchors, q, v)
+        for n in range(1, n_stages + 1):
+            self.advance(phase, anchors, q, v, (1.0,) * n, [v] * n, [v] * n, 0.0)
+
+    def _coeffs(self, coeffs: tuple[float, ...], n: int) -> np.ndarray:
+        """The first n Runge-Kutta coefficients as a float array (cached per tableau row)."""
+        key = (coeffs, n)
+        arr = self._coeff_cache.get(key)
+        if arr is None:
+            arr = self._coeff_cache[key] = np.array(coeffs[:n], dtype=float)
+        return arr
+
+
 
 
 class StageKernel:
@@ -142,8 +218,8 @@ class StageKernel:
         self.gravity = np.array(model.gravity.linear, dtype=float)
         self._act = act
         self._limits = self._act_limits()
-        self._anchor_cache: dict[Phase, tuple] = {}
-        self._coeff_cache: dict = {}
+        self.support = SupportKernel(hm, self.tree)
+        self._anchor = self.support.anchor
         self.split = False
         """True: :meth:`stage` calls :meth:`controller` and :meth:`dynamics` separately (same results, one more call;
         for a profile that times the two apart, as ``scripts/bench.py`` does), else one fused compiled call."""
@@ -180,7 +256,7 @@ class StageKernel:
     def _build_args(self) -> None:
         """The constant trailing arguments of the compiled calls, per phase."""
         tr, w = self.tree, self._work
-        self._ctrl_args, self._dyn_args, self._stage_args, self._proj_args = {}, {}, {}, {}
+        self._ctrl_args, self._dyn_args, self._stage_args = {}, {}, {}
         act = (self.g1, self.g3, self.gs, self.hj, self.arm_mass, self.arm_lever, self.arm_I, self.gravity,
                self._limits)
         for ph, (ip, fp_, welds, lock_q, lock_v, _, _) in self.phase.items():
@@ -194,8 +270,6 @@ class StageKernel:
                 self._dyn_args[ph] = (tr.support, tr.fparent, self.jcols, self.jsign, welds, lock_q, lock_v,
                                       self.kp, self.kd) + act + (w[0], w[1], w[2], w[3], w[5])
                 self._stage_args[ph] = self._ctrl_args[ph] + (welds, lock_q, lock_v, self.kp, self.kd) + act
-            self._proj_args[ph] = (lock_q, lock_v, tr.parents, tr.axis, tr.idx_q, tr.idx_v, tr.jR, tr.jp, tr.support,
-                                   tr.fparent[welds[0]], tr.fR[welds[0]], tr.fp[welds[0]])
 
     def _motion_frames(self, phase: Phase) -> np.ndarray:
         """Which frames' [J | drift] and velocity the phase's controller reads: the hip CoM (also logged), the stance
@@ -213,19 +287,6 @@ class StageKernel:
                 need[fi[body]] = True
         need[fi[lay.root_weld]] = True
         return need
-
-    def _anchor(self, phase: Phase, anchors: Anchors) -> tuple[np.ndarray, np.ndarray, float]:
-        """(R (n_w, 3, 3), p (n_w, 3), toe angle) of the phase's weld anchors and lock anchor as arrays, re-read
-        whenever the Anchors object, one of its placement entries or its toe angle is not the one last read for this
-        phase (the simulator replaces anchors at phase changes; an SE3 modified in place would not be noticed)."""
-        _, _, _, _, _, frames, toe = self.phase[phase]
-        Ms = tuple(anchors.placements[f] for f in frames)
-        angle = anchors.joint_positions[toe]
-        hit = self._anchor_cache.get(phase)
-        if hit is None or hit[0] is not anchors or any(a is not b for a, b in zip(hit[1], Ms)) or hit[2] != angle:
-            val = (np.array([M.rotation for M in Ms]), np.array([M.translation for M in Ms]), float(angle))
-            hit = self._anchor_cache[phase] = (anchors, Ms, angle, val)
-        return hit[3]
 
     def controller(self, phase: Phase, q: np.ndarray, v: np.ndarray, data: pin.Data, table: np.ndarray, t: float
                    ) -> np.ndarray:
@@ -270,40 +331,13 @@ class StageKernel:
         return StageOutput(a, lam, qdd, T, tau, log)
 
     def project(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The compiled ``Simulator.project_on_support`` for the support foot of ``phase``."""
-        aR, ap, alock = self._anchor(phase, anchors)
-        q_out, v_out = np.empty_like(q), np.empty_like(v)
-        project_on_support(q, v, aR[0], ap[0], alock, *self._proj_args[phase], q_out, v_out)
-        return q_out, v_out
+        """:meth:`SupportKernel.project`."""
+        return self.support.project(phase, anchors, q, v)
 
     def advance(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray, coeffs: tuple[float, ...],
                 vs: list[np.ndarray], accs: list[np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`project` of (q integrated by h sum c_j vs_j, v + h sum c_j accs_j): the integrator's stage and
-        step-end states (``RungeKutta.step``'s ``advance``)."""
-        aR, ap, alock = self._anchor(phase, anchors)
-        q_out, v_out = np.empty_like(q), np.empty_like(v)
-        advance_on_support(q, v, self._coeffs(coeffs, len(vs)), tuple(vs), tuple(accs), h, aR[0], ap[0], alock,
-                           *self._proj_args[phase], q_out, v_out)
-        return q_out, v_out
-
-    def warm_up(self, q: np.ndarray, n_stages: int) -> None:
-        """Compile (or load from numba's cache) every entry point a run will call, before it starts: the projection
-        and the advance for 1 .. n_stages stage rates (one compiled variant per count), so that no compilation
-        lands inside a timed run."""
-        phase = Phase.LFFSSP
-        anchors = record_anchors(self.hm.model, q, phase.contacts)
-        v = np.zeros(self.tree.nv)
-        self.project(phase, anchors, q, v)
-        for n in range(1, n_stages + 1):
-            self.advance(phase, anchors, q, v, (1.0,) * n, [v] * n, [v] * n, 0.0)
-
-    def _coeffs(self, coeffs: tuple[float, ...], n: int) -> np.ndarray:
-        """The first n Runge-Kutta coefficients as a float array (cached per tableau row)."""
-        key = (coeffs, n)
-        arr = self._coeff_cache.get(key)
-        if arr is None:
-            arr = self._coeff_cache[key] = np.array(coeffs[:n], dtype=float)
-        return arr
+        """:meth:`SupportKernel.advance`."""
+        return self.support.advance(phase, anchors, q, v, coeffs, vs, accs, h)
 
 
 def _outputs(nv: int, m: int) -> tuple[np.ndarray, ...]:

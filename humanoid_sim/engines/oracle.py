@@ -1,4 +1,5 @@
-"""``walk.py --engine thesis``: a whole walk on the NumPy oracle, as the thesis's Simulink model ran it.
+"""The oracle engine (``walk.py --engine thesis``): a whole walk on the NumPy transcription of the thesis's
+equations (:mod:`humanoid_sim.thesis`), as its Simulink model ran it.
 
 State: the thesis joint angles theta and rates theta_dot (26 each, eq. 4.1 order, rad and rad/s) plus the
 placement data of the toe bodies held on the ground (``fixed``: C^(0,1) / C^(0,2) and the toe points, world
@@ -17,17 +18,17 @@ trailing foot's data.
 
 Per ode3 stage (Bogacki-Shampine, ``integrator.TABLEAUS``, integrated directly in R^26 x R^26):
 
-1. (q, v) for Pinocchio: ``hm.q_on_foot`` on the root toe body, v from theta_dot plus the base twist that keeps
-   the root toe body at rest;
-2. command accelerations of thesis 5.1 (:class:`humanoid_sim.command.CommandAccelerations`, shared with the fast
-   path) at the references of the current phase;
-3. the oracle's computed torque (5.2: SSP exact, DSP weighted minimum norm with the scenario's W_act);
-4. saturation of T (``Actuators.saturate``, errata section 7 limits);
-5. the oracle's 122 x 122 direct dynamic solution with the saturated T -> theta_ddot and F.
+1. (q, v) for Pinocchio (what a controller observes): ``hm.q_on_foot`` on the root toe body, v from theta_dot plus
+   the base twist that keeps the root toe body at rest;
+2. the oracle's dynamic terms M, B, K of the phase (section 4.4), offered to the controller as
+   :class:`OracleModel` (the thesis controller's 5.2 computed torque: SSP exact, DSP weighted minimum norm with
+   the scenario's W_act);
+3. the controller (the stepping loop's, :mod:`humanoid_sim.loop`), which returns the saturated T (or joint torques,
+   converted to T by the actuator map);
+4. the oracle's 122 x 122 direct dynamic solution with T -> theta_ddot and F.
 
-Phase selection (6.1.1) at step boundaries with the same rules as the fast path (``phases.ssp_should_end`` /
-``dsp_should_end``); touchdown applies the oracle's velocity reset (eqs. 4.97 / 4.100, the scenario's W_adj) and
-tells the trajectory the landing (``traj.set_landing``).
+Phase selection (6.1.1) is the stepping loop's; touchdown applies the oracle's velocity reset (eqs. 4.97 / 4.100,
+the scenario's W_adj).
 
 Logged signals (``results.SIGNALS``): task quantities (hip CoM, C^(0,17), toe points, C^(0,1), C^(0,2)) from the
 oracle's own kinematics; ``q`` / ``v`` from the Pinocchio conversion of step 1 (so the viewer works); ground
@@ -45,11 +46,13 @@ Decisions where the thesis is silent:
   logged in the phase record like the fast path does.
 - W_act: ``controller.Wact_RFFDSP`` / ``Wact_LFFDSP`` of the scenario when present, else
   ``thesis.forces.default_w_act()`` (errata A-3 reconstruction).
+- A controller that returns joint torques only (no T) drives the oracle with T = B^-1 tau, B the actuator map of
+  :meth:`humanoid_sim.actuators.Actuators.torque_map` (T's components only, reactions held).
 
 Speed: every stage builds M and B from 27 kinematic passes (section 4.4) and solves a 122 x 122 system.  These
 are small dense problems on which a multi-threaded BLAS only adds synchronisation; on the shared 2-core machine
-the walk ran 2.5-5 x slower with OpenBLAS's default threads.  ``run`` therefore limits the OpenBLAS libraries
-bundled with NumPy and SciPy to one thread for its duration (:func:`single_threaded_blas`, restored afterwards;
+the walk ran 2.5-5 x slower with OpenBLAS's default threads.  the engine therefore limits the OpenBLAS libraries
+bundled with NumPy and SciPy to one thread while it runs (:func:`single_threaded_blas`, restored afterwards;
 a no-op where those libraries are not found).  Measured on sim1: 6-8 s of wall time per simulated second
 (2 shared cores), against 15-50 s with the default BLAS threads.
 """
@@ -66,16 +69,15 @@ import numpy as np
 import pinocchio as pin
 
 from humanoid_sim.actuators import Actuators
-from humanoid_sim.command import CommandAccelerations
 from humanoid_sim.contact.wrenches import centre_of_pressure
-from humanoid_sim.initial import initial_configuration
+from humanoid_sim.controllers.base import Command, Observation
+from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
 from humanoid_sim.integrator import TABLEAUS, Tableau
 from humanoid_sim.model import HumanoidModel
-from humanoid_sim.phases import Phase, SwitchThresholds
+from humanoid_sim.phases import Phase
 from humanoid_sim.results import SimLog
 from humanoid_sim.scenario import Scenario
 from humanoid_sim.selector import PhaseSelector, SimulationError
-from humanoid_sim.simulate import BASIC, SimResult, Simulator, _unwrap_to, yaw_of
 from humanoid_sim.thesis.dynamics import DynamicsError
 from humanoid_sim.thesis.engine import ThesisEngine
 from humanoid_sim.thesis.forces import N_F, default_w_act
@@ -83,6 +85,9 @@ from humanoid_sim.thesis.frames import PhaseError
 from humanoid_sim.thesis.joint_space import Q_from_F
 from humanoid_sim.thesis.kinematics import TOE_BODY, TOE_POINT, FootState, Kinematics, positions
 from humanoid_sim.trajectory import ReferenceTrajectory
+
+ORACLE_ERRORS = (DynamicsError, PhaseError)
+"""The oracle's own failures (a singular solve, a phase it does not know): the loop reports them as a failed run."""
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 TOE_FRAME = {"R": "O_1", "L": "O_2"}
@@ -138,15 +143,37 @@ def _w_act(controller_raw: dict, key: str) -> np.ndarray:
     return w
 
 
-class ThesisSimulator:
-    """Runs one scenario on the thesis oracle (:class:`humanoid_sim.thesis.ThesisEngine`).
 
-    Same interface and output as :class:`humanoid_sim.simulate.Simulator`: attributes ``traj``, ``q0``, and
-    ``run(t_end, progress) -> SimResult`` with a full :class:`humanoid_sim.results.SimLog`.  Slow on purpose
-    (every matrix is built as the thesis builds it): 6-8 s of wall time per simulated second.
+class OracleModel:
+    """The oracle's constraint model at the stage the engine is evaluating, offered to controllers
+    (``ControlContext.constraints``): the thesis's computed torque of 5.2 on the oracle's equations."""
+
+    kind = "oracle"
+
+    def __init__(self, engine: ThesisEngine, w_act: dict[str, np.ndarray]) -> None:
+        self.engine = engine
+        self.W_act = w_act
+        self.current: tuple | None = None   # (phase name, theta, theta_dot, fixed, dynamic terms) of the stage
+
+    def computed_torque(self, theta_ddot_cmd: np.ndarray) -> np.ndarray:
+        """T (26,, N m) realising the command accelerations (rad/s^2) at the current stage (thesis 5.2)."""
+        name, theta, theta_dot, fixed, terms = self.current
+        return self.engine.computed_torque(name, theta, theta_dot, theta_ddot_cmd, fixed,
+                                           W_act=self.W_act.get(name), terms=terms).T
+
+
+class OracleEngine:
+    """The whole walk on the thesis oracle (:class:`humanoid_sim.thesis.ThesisEngine`): see the module docstring.
+    Slow on purpose (every matrix is built as the thesis builds it): 6-8 s of wall time per simulated second.
+
+    Engine interface (:class:`humanoid_sim.engines.base.Engine`) as :class:`humanoid_sim.engines.weld.WeldEngine`.
     """
 
-    def __init__(self, hm: HumanoidModel, scenario: Scenario, engine: ThesisEngine | None = None) -> None:
+    name = "thesis"
+    errors = ORACLE_ERRORS
+
+    def __init__(self, hm: HumanoidModel, scenario: Scenario, traj: ReferenceTrajectory,
+                 engine: ThesisEngine | None = None) -> None:
         if scenario.simulation.impact_law != "thesis":
             raise ThesisWalkError(f"simulation.impact_law = {scenario.simulation.impact_law!r}: the thesis engine "
                                   "implements only the thesis's touchdown law (eqs. 4.97/4.100, 'thesis')")
@@ -155,26 +182,24 @@ class ThesisSimulator:
                                   f"{sorted(TABLEAUS)}")
         self.hm = hm
         self.sc = scenario
+        self.traj = traj
         self.model = hm.model
         self.data = hm.model.createData()
         self.engine = engine if engine is not None else ThesisEngine(hm.spec)
         self.params = self.engine.params
-        self.traj = ReferenceTrajectory(scenario.path)
-        self.q0 = initial_configuration(hm, scenario.path)
-        self.theta0 = hm.theta_from_q(self.q0)
-        self.cmd = CommandAccelerations(hm, scenario.controller, theta0=self.theta0)
         self.act = Actuators(hm)
         self.tableau: Tableau = TABLEAUS[scenario.simulation.method]
-        sw = scenario.switch
-        self.thresholds = SwitchThresholds(sw.toe_flat_height_m, sw.touchdown_tolerance_m,
-                                           sw.min_horizontal_progress_fraction, sw.dsp_hip_distance_m,
-                                           sw.dsp_overtime_fraction)
         raw = scenario.controller.raw
-        self.W_act = {"RFFDSP": _w_act(raw, "Wact_RFFDSP"), "LFFDSP": _w_act(raw, "Wact_LFFDSP")}
+        self.constraints = OracleModel(self.engine, {"RFFDSP": _w_act(raw, "Wact_RFFDSP"),
+                                                     "LFFDSP": _w_act(raw, "Wact_LFFDSP")})
         self.fid = {n: hm.frame_id(n) for n in ("O_1", "O_2", "P_tpR", "P_tpL")}
         self.E = np.zeros((self.model.nv, 26))   # joint part of v from theta_dot (v = sign * theta_dot)
         self.E[hm.theta_v_idx, np.arange(26)] = hm.theta_sign
-        self.stage_evals = 0
+        self.theta = self.theta_dot = None
+        self.fixed: dict[str, FootState] = {}
+        self.phase: Phase | None = None
+        self._kin: Kinematics | None = None
+        self._blas = None
 
     # ------------------------------------------------------------------ thesis state <-> pinocchio
     def pin_state(self, phase: Phase, fixed: dict[str, FootState], theta: np.ndarray,
@@ -191,31 +216,68 @@ class ThesisSimulator:
         v[:6] = -np.linalg.solve(J[:, :6], J @ v)
         return q, v
 
-    # ------------------------------------------------------------------ one stage
-    def evaluate(self, k: int, phase: Phase, fixed: dict[str, FootState], t: float, theta: np.ndarray,
-                 theta_dot: np.ndarray) -> dict:
-        """Command accelerations (5.1) -> computed torque (5.2) -> saturation -> 122 x 122 solution at a state.
+    # ------------------------------------------------------------------ state
+    def start(self, q0: np.ndarray, phase: Phase) -> None:
+        """At rest at q0; the support foot's toe body is the chain root.  Limits NumPy's and SciPy's OpenBLAS to one
+        thread until :meth:`close` (see the module docstring)."""
+        self.theta = self.hm.theta_from_q(q0)
+        self.theta_dot = np.zeros(26)
+        self.phase = phase
+        pin.framesForwardKinematics(self.model, self.data, q0)
+        self.fixed = {}
+        for foot in phase.stance_feet:   # the support foot's toe body (and a trailing toe's in double support)
+            M = self.data.oMf[self.fid[TOE_FRAME[foot]]]
+            p = self.data.oMf[self.fid["P_tp" + foot]].translation
+            self.fixed[foot] = FootState(M.rotation.copy(), p.copy())
+        if self._blas is None:
+            self._blas = single_threaded_blas()
+            self._blas.__enter__()
 
-        Returns theta_ddot (rad/s^2), the solution F (eq. 4.68), T_cmd / T (N m, eq. 4.69 order), the saturation
-        mask, the command accelerations, the dynamic terms and the Pinocchio (q, v)."""
-        self.stage_evals += 1
+    def close(self) -> None:
+        """Restore the BLAS thread counts changed by :meth:`start`."""
+        if self._blas is not None:
+            self._blas.__exit__(None, None, None)
+            self._blas = None
+
+    def state_vectors(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.theta, self.theta_dot
+
+    # ------------------------------------------------------------------ one step
+    def _T_of(self, q: np.ndarray, cmd: Command) -> np.ndarray:
+        if cmd.T is not None:
+            return cmd.T
+        return np.linalg.solve(self.act.torque_map(q)[6:], cmd.tau[6:])   # tau = B T on the 26 joint rows
+
+    def stage(self, control: Callable[[Observation], Command], k: int, phase: Phase, fixed: dict[str, FootState],
+              t: float, theta: np.ndarray, theta_dot: np.ndarray, stage: int = 0) -> dict:
+        """One stage at a thesis state: the Pinocchio state the controller observes, the oracle's dynamic terms,
+        the controller's command, and the oracle's direct dynamic solution (``fd``) of its T."""
         name = phase.value
         q, v = self.pin_state(phase, fixed, theta, theta_dot)
-        # Simulator._references reads only self.traj and self.sc.controller (see the report's refactor note)
-        ref_a, ref_b = Simulator._references(self, k, t)  # type: ignore[arg-type]
-        thdd_c = self.cmd.compute(name, q, v, ref_a, ref_b)
         terms = self.engine.dynamic_terms(name, theta, theta_dot, fixed)
-        ct = self.engine.computed_torque(name, theta, theta_dot, thdd_c, fixed,
-                                         W_act=self.W_act.get(name), terms=terms)
-        T_sat, sat = self.act.saturate(ct.T)
-        fd = self.engine.forward_dynamics(name, theta, theta_dot, T_sat, fixed, terms=terms)
-        return {"thdd": fd.theta_ddot, "fd": fd, "terms": terms, "thdd_c": thdd_c, "T_cmd": ct.T, "T": T_sat,
-                "sat": sat, "q": q, "v": v}
+        self.constraints.current = (name, theta, theta_dot, fixed, terms)
+        cmd = control(Observation(t, k, phase, q, v, None, stage))
+        T = self._T_of(q, cmd)
+        fd = self.engine.forward_dynamics(name, theta, theta_dot, T, fixed, terms=terms)
+        return {"fd": fd, "terms": terms, "cmd": cmd, "T": T, "q": q, "v": v}
 
-    def _step(self, f: Callable[[float, np.ndarray, np.ndarray, int], np.ndarray], t: float, theta: np.ndarray,
-              theta_dot: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-        """One explicit RK step in R^26 x R^26 with the scenario's tableau (ode3: Simulink's Bogacki-Shampine)."""
+    def step(self, t: float, h: float, k: int, control: Callable[[Observation], Command],
+             checks: PhaseSelector) -> tuple:
+        """One explicit RK step in R^26 x R^26 with the scenario's tableau (ode3: Simulink's Bogacki-Shampine);
+        returns the step's log record (state at t and the stage-0 outputs)."""
+        phase, fixed = self.phase, self.fixed
+        stage0: dict = {}
+
+        def f(ts: float, th: np.ndarray, thd: np.ndarray, stage: int) -> np.ndarray:
+            checks.check_stage(ts, th, thd, stage)
+            out = self.stage(control, k, phase, fixed, ts, th, thd, stage)
+            checks.check_acceleration(ts, out["fd"].theta_ddot)
+            if stage == 0:
+                stage0.update(out)
+            return out["fd"].theta_ddot
+
         tab = self.tableau
+        theta, theta_dot = self.theta, self.theta_dot
         rates: list[np.ndarray] = []
         accs: list[np.ndarray] = []
         for i, ci in enumerate(tab.c):
@@ -223,119 +285,63 @@ class ThesisSimulator:
             thd_i = theta_dot + h * sum((aij * a for aij, a in zip(tab.a[i], accs)), np.zeros(26))
             rates.append(thd_i)
             accs.append(f(t + ci * h, th_i, thd_i, i))
-        theta_new = theta + h * sum(bi * r for bi, r in zip(tab.b, rates))
-        theta_dot_new = theta_dot + h * sum(bi * a for bi, a in zip(tab.b, accs))
-        return theta_new, theta_dot_new
+        self.theta = theta + h * sum(bi * r for bi, r in zip(tab.b, rates))
+        self.theta_dot = theta_dot + h * sum(bi * a for bi, a in zip(tab.b, accs))
+        self._kin = None
+        return (theta, theta_dot, fixed, stage0)
 
-    # ------------------------------------------------------------------ the run
-    def initial_fixed(self, phase: Phase) -> dict[str, FootState]:
-        """Supplied toe-body data at the start: the support foot's toe body where the initial posture puts it."""
-        pin.framesForwardKinematics(self.model, self.data, self.q0)
-        foot = phase.support_foot
-        M = self.data.oMf[self.fid[TOE_FRAME[foot]]]
-        p = self.data.oMf[self.fid["P_tp" + foot]].translation
-        return {foot: FootState(M.rotation.copy(), p.copy())}
+    # ------------------------------------------------------------------ what the phase selector reads
+    def _positions(self) -> Kinematics:
+        if self._kin is None:
+            self._kin = positions(self.phase.value, self.theta, self.fixed, self.params)
+        return self._kin
 
-    def run(self, t_end: float | None = None, progress: Callable[[float, int], None] | None = None) -> SimResult:
-        """Simulate until every planned phase is done, ``t_end`` (s), the scenario's end time, or a failure.
+    def hip_com(self) -> np.ndarray:
+        if not np.all(np.isfinite(self.theta)):
+            return np.full(3, np.nan)
+        return self._positions().P["c17"]
 
-        The log keeps everything up to a failure; ``SimResult.reason`` says how the run ended."""
-        with single_threaded_blas():
-            return self._run(t_end, progress)
+    def toe_point(self, foot: str) -> np.ndarray:
+        return self._positions().P[TOE_POINT[foot]].copy()
 
-    def _run(self, t_end: float | None, progress: Callable[[float, int], None] | None) -> SimResult:
-        sc, traj = self.sc, self.traj
-        h = sc.simulation.step_s
-        n_phases = traj.n_phases
-        nominal_end = traj.phases[-1].t_end
-        t_stop = t_end if t_end is not None else (sc.simulation.t_end_s or np.inf)
-        phase = Phase(traj.phases[0].name)
-        fixed = self.initial_fixed(phase)
-        theta = self.theta0.copy()
-        theta_dot = np.zeros(26)
-        t = 0.0
-        log = SimLog()
-        kin = positions(phase.value, theta, fixed, self.params)
-        sel = PhaseSelector(traj, self.thresholds, sc.simulation, self._toe(kin, traj.phases[0].swing_foot))
-        yaw_prev = {"hip": yaw_of(self.hm.spec.C0), "hip_ref": yaw_of(self.hm.spec.C0)}
-        stage0: dict = {}
-        completed, reason = False, ""
-        steps = 0
-        wall0 = time.perf_counter()
+    def toe_rotation(self, foot: str) -> np.ndarray:
+        return self._positions().C[TOE_BODY[foot]].copy()
 
-        def f(ts: float, th: np.ndarray, thd: np.ndarray, stage: int) -> np.ndarray:
-            sel.check_stage(ts, th, thd, stage)
-            out = self.evaluate(sel.k, sel.phase, fixed, ts, th, thd)
-            sel.check_acceleration(ts, out["thdd"])
-            if stage == 0:
-                stage0.clear()
-                stage0.update(out)
-            return out["thdd"]
+    # ------------------------------------------------------------------ phase changes
+    def touchdown(self, t: float, phase: Phase, foot: str, key: str) -> None:
+        """The oracle's velocity reset (eqs. 4.97 / 4.100, weights ``reset.<key>``); the landed toe body becomes the
+        new chain root where it landed (thesis L4024)."""
+        if key not in self.sc.W_adj:
+            raise SimulationError(f"touchdown at t = {t:.3f} s: the scenario has no reset.{key}")
+        kin = self._positions()
+        toe, R_toe = kin.P[TOE_POINT[foot]].copy(), kin.C[TOE_BODY[foot]].copy()
+        res = self.engine.touchdown_reset(phase.value, self.theta, self.theta_dot, self.fixed, self.sc.W_adj[key])
+        self.theta_dot = res.theta_dot
+        self.fixed = {**self.fixed, foot: FootState(R_toe, toe)}
 
-        try:
-            while True:
-                if t >= t_stop - 1e-12:
-                    reason = f"stopped at t = {t:.3f} s (requested stop time)"
-                    break
-                k, phase = sel.k, sel.phase
-                th_new, thd_new = self._step(f, t, theta, theta_dot, h)
-                self._log(log, k, phase, t, theta, theta_dot, fixed, stage0, yaw_prev)
-                theta, theta_dot, t = th_new, thd_new, t + h
-                steps += 1
-                if progress is not None:
-                    progress(t, k)
-                finite = np.all(np.isfinite(theta))
-                kin = positions(phase.value, theta, fixed, self.params) if finite else None
-                hip = kin.P["c17"] if finite else np.full(3, np.nan)
-                sel.check_state(t, theta, theta_dot, hip)
-                swing = sel.info.swing_foot
-                toe = kin.P[TOE_POINT[swing]] if swing is not None else None
-                if not sel.should_switch(t, hip, toe):
-                    continue
-                sel.end_phase(t)
-                if sel.is_last:
-                    completed, reason = True, f"all {n_phases} phases completed at t = {t:.3f} s"
-                    break
-                if swing is not None:     # touchdown: SSP -> DSP
-                    toe = toe.copy()
-                    R_toe = kin.C[TOE_BODY[swing]].copy()
-                    key = sel.record_touchdown(toe, R_toe)
-                    if key not in sc.W_adj:
-                        raise SimulationError(f"touchdown at t = {t:.3f} s: the scenario has no reset.{key}")
-                    res = self.engine.touchdown_reset(phase.value, theta, theta_dot, fixed, sc.W_adj[key])
-                    theta_dot = res.theta_dot
-                    traj.set_landing(swing, k, toe, R_toe)
-                    fixed = {**fixed, swing: FootState(R_toe, toe)}   # the landed toe body: the new chain root
-                nxt_phase = phase.next
-                fixed = {ft: fixed[ft] for ft in nxt_phase.stance_feet}   # lift-off drops the trailing toe's data
-                sel.advance(t, self._toe(positions(nxt_phase.value, theta, fixed, self.params),
-                                         traj.phases[k + 1].swing_foot))
-        except (SimulationError, DynamicsError, PhaseError, np.linalg.LinAlgError) as exc:
-            reason = str(exc) if isinstance(exc, SimulationError) else \
-                f"{type(exc).__name__} at t = {t:.3f} s in {sel.where()}: {exc}"
-        except KeyboardInterrupt:
-            reason = f"interrupted by the user at t = {t:.3f} s"
-        sel.close(t)
-        records = sel.records
-        return SimResult(log=log, phases=records, phases_planned=n_phases, completed=completed, reason=reason,
-                         sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps,
-                         stage_evaluations=self.stage_evals, extra={"nominal_end": nominal_end, "engine": "thesis"})
-
-    @staticmethod
-    def _toe(kin: Kinematics, foot: str | None) -> np.ndarray | None:
-        return None if foot is None else kin.P[TOE_POINT[foot]].copy()
+    def enter(self, phase: Phase) -> None:
+        """Start ``phase``: lift-off drops the trailing toe's data."""
+        self.fixed = {ft: self.fixed[ft] for ft in phase.stance_feet}
+        self.phase = phase
+        self._kin = None
 
     # ------------------------------------------------------------------ logging
+    def build_log(self, rows: list[tuple]) -> SimLog:
+        """Every signal of ``results.SIGNALS`` per step, from the loop's records (see the module docstring)."""
+        log = SimLog()
+        yaw_prev = {"hip": yaw_of(self.hm.spec.C0), "hip_ref": yaw_of(self.hm.spec.C0)}
+        for t, k, phase, ref, hip_ctrl, theta, theta_dot, fixed, out in rows:
+            self._log(log, k, phase, t, theta, theta_dot, fixed, out, ref, hip_ctrl, yaw_prev)
+        return log
+
     def _log(self, log: SimLog, k: int, phase: Phase, t: float, theta: np.ndarray, theta_dot: np.ndarray,
-             fixed: dict[str, FootState], out: dict, yaw_prev: dict) -> None:
-        """One row of every signal of ``results.SIGNALS`` at the start of a step (stage-0 outputs)."""
+             fixed: dict[str, FootState], out: dict, ref, hip_ctrl: np.ndarray, yaw_prev: dict) -> None:
+        """One row of every signal at the start of a step (stage-0 outputs)."""
         kin = self.engine.kinematics(phase.value, theta, theta_dot, fixed)
-        fd, terms = out["fd"], out["terms"]
-        ref = self.traj.sample_global(t)
-        ref_ctrl = self.traj.sample_global(t, k)
+        fd, terms, cmd = out["fd"], out["terms"], out["cmd"]
         R17 = kin.C[17]
-        yaw = _unwrap_to(yaw_of(R17), yaw_prev["hip"])
-        yaw_ref = _unwrap_to(yaw_of(ref.hip_R), yaw_prev["hip_ref"])
+        yaw = unwrap_to(yaw_of(R17), yaw_prev["hip"])
+        yaw_ref = unwrap_to(yaw_of(ref.hip_R), yaw_prev["hip_ref"])
         yaw_prev["hip"], yaw_prev["hip_ref"] = yaw, yaw_ref
         bf = np.zeros((4, 3))
         bm = np.zeros((4, 3))
@@ -365,10 +371,14 @@ class ThesisSimulator:
             drift_o = float(np.linalg.norm(pin.log3(kin.C["17fR"].T @ kin.C["17fL"])))
         residual = float(np.max(np.abs(terms.M @ fd.theta_ddot + terms.B - terms.K @ fd.F)))
         tau = self.hm.tau_from_joint_torques(Q_from_F(kin, fd.F))
+        T = out["T"]
+        T_cmd = cmd.T_cmd if cmd.T_cmd is not None else T
+        sat = cmd.saturated if cmd.saturated is not None else np.zeros(26, dtype=bool)
+        thdd_c = cmd.theta_ddot_cmd if cmd.theta_ddot_cmd is not None else np.full(26, np.nan)
         log.append(
             t=t, phase=k, basic_phase=BASIC[phase], q=out["q"], v=out["v"], theta=theta, theta_dot=theta_dot,
-            theta_ddot=fd.theta_ddot, theta_ddot_cmd=out["thdd_c"], T_cmd=out["T_cmd"], T=out["T"],
-            saturated=out["sat"], tau=tau, hip_p=kin.P["c17"], hip_p_ref=ref.hip_p, hip_p_ctrl_ref=ref_ctrl.hip_p,
+            theta_ddot=fd.theta_ddot, theta_ddot_cmd=thdd_c, T_cmd=T_cmd, T=T,
+            saturated=sat, tau=tau, hip_p=kin.P["c17"], hip_p_ref=ref.hip_p, hip_p_ctrl_ref=hip_ctrl,
             hip_v=kin.V["c17"], hip_v_ref=ref.hip_v, hip_R=R17, hip_R_ref=ref.hip_R, hip_yaw=yaw,
             hip_yaw_ref=yaw_ref, toe_R_p=kin.P["tpR"], toe_R_p_ref=ref.toe_R_p, toe_L_p=kin.P["tpL"],
             toe_L_p_ref=ref.toe_L_p, foot_R_R=kin.C[1], foot_L_R=kin.C[2], body_force=bf, body_moment=bm,
@@ -376,4 +386,4 @@ class ThesisSimulator:
             drift_orientation=drift_o, dynamics_residual=residual)
 
 
-__all__ = ["ThesisSimulator", "ThesisWalkError"]
+__all__ = ["ORACLE_ERRORS", "OracleEngine", "OracleModel", "ThesisWalkError", "single_threaded_blas"]

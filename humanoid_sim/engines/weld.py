@@ -1,0 +1,288 @@
+"""The weld engine: the thesis's contact model on Pinocchio (``walk.py --engine pinocchio``, the default).
+
+A foot in contact is welded (thesis chapter 4): in the floating-base model a flat foot is a 6-D weld of its main
+body plus a lock of its toe joint; in double support the trailing foot's toe body is welded too (7 / 13 constraint
+rows, 25 / 19 free DOF, the thesis's counts).  The state (q, v) advances by fixed-step Runge-Kutta (ode3 =
+Bogacki-Shampine, as Simulink's) with the controller evaluated at every stage; the accelerations are the KKT
+forward dynamics of the controller's torques under the phase's constraints (Baumgarte-stabilised,
+:class:`humanoid_sim.contact.ContactDynamics`), or the motion the controller solved for under this same model
+(``Command.motion``; the thesis controller's computed torque realises it exactly when no actuator saturates).
+
+Decisions where the thesis is silent:
+- The support foot (welded main body plus locked toe joint, the thesis's chain root) is held exactly: every ode3
+  stage state and every step's end is projected onto it -- the base placement re-derived from the foot's anchor,
+  the base twist from the joint rates, the toe joint at its anchor angle with zero rate -- as the thesis's
+  joint-space integration holds it by construction.  The other constraints (the trailing toe in double support)
+  are held by the contact solver's Baumgarte stabilisation.
+- Touchdown applies the velocity reset of 4.5 (or the inelastic impulse law) and welds the landing foot where it
+  landed (errata K-9: a foot that lands tilted stays welded tilted).
+
+Speed: with numba, each stage's integration and projection run compiled (:class:`humanoid_sim.kernel.stage.
+SupportKernel`), equal to :meth:`WeldEngine.project_on_support` to round-off.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+import pinocchio as pin
+
+from humanoid_sim import kernel as _kernel
+from humanoid_sim.actuators import Actuators
+from humanoid_sim.contact import ContactDynamics, record_anchors
+from humanoid_sim.contact.inverse import symmetric_inertia
+from humanoid_sim.contact.wrenches import GroundReactionLog
+from humanoid_sim.controllers.base import Command, Observation
+from humanoid_sim.impact import touchdown
+from humanoid_sim.integrator import RungeKutta
+from humanoid_sim.model import HumanoidModel
+from humanoid_sim.phases import FOOT_SPECS, Phase
+from humanoid_sim.results import SimLog
+from humanoid_sim.scenario import Scenario
+from humanoid_sim.selector import PhaseSelector, all_finite
+from humanoid_sim.trajectory import ReferenceTrajectory
+
+BASIC = {Phase.LFFSSP: 0, Phase.RFFDSP: 1, Phase.RFFSSP: 2, Phase.LFFDSP: 3}
+FEET = (FOOT_SPECS["R"], FOOT_SPECS["L"])
+BODY_FRAMES = ("O_1", "O_2", "O_3", "O_4")  # rows of the logged thesis ground wrenches (bodies 1-4)
+LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+def yaw_of(R: np.ndarray) -> float:
+    """Heading of the body x-axis in the world ground plane (rad, from world x)."""
+    return float(np.arctan2(R[1, 0], R[0, 0]))
+
+
+def unwrap_to(angle: float, ref: float) -> float:
+    """``angle`` shifted by a multiple of 2 pi into (ref - pi, ref + pi]."""
+    return ref + (angle - ref + np.pi) % (2 * np.pi) - np.pi
+
+
+class WeldModel:
+    """The weld engine's constraint model, offered to controllers (``ControlContext.constraints``): the phase's
+    welds and toe locks as Pinocchio KKT rows (``dyn``, a :class:`humanoid_sim.contact.ContactDynamics`)."""
+
+    kind = "weld"
+
+    def __init__(self, dyn: ContactDynamics) -> None:
+        self.dyn = dyn
+
+
+class WeldEngine:
+    """Pinocchio floating-base dynamics with the feet welded (see the module docstring).
+
+    Engine interface (:class:`humanoid_sim.engines.base.Engine`): ``start``, ``step``, ``hip_com``,
+    ``toe_point``, ``toe_rotation``, ``state_vectors``, ``touchdown``, ``enter``, ``build_log``."""
+
+    name = "pinocchio"
+
+    def __init__(self, hm: HumanoidModel, scenario: Scenario, traj: ReferenceTrajectory,
+                 compiled: bool | None = None) -> None:
+        """``compiled``: run the integration and projection compiled (:class:`SupportKernel`); None = when numba
+        is installed, False = never."""
+        self.hm = hm
+        self.sc = scenario
+        self.traj = traj
+        self.model = hm.model
+        self.dyn = ContactDynamics(hm.model)
+        self.constraints = WeldModel(self.dyn)
+        self.rk = RungeKutta(hm.model, scenario.simulation.method)
+        self.act = Actuators(hm)
+        self.fid = {n: hm.frame_id(n) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2")}
+        self.data = hm.model.createData()
+        self.proj_data = hm.model.createData()
+        self._weld_fid = {s.main_frame: hm.frame_id(s.main_frame) for s in FOOT_SPECS.values()}
+        self._lock_idx = {}
+        for s in FOOT_SPECS.values():
+            jid = hm.model.getJointId(s.toe_joint)
+            self._lock_idx[s.toe_joint] = (hm.model.idx_qs[jid], hm.model.idx_vs[jid])
+        self._reactions = GroundReactionLog(hm.model, FEET, BODY_FRAMES)
+        self._no_sat = np.zeros(26, dtype=bool)
+        if compiled is None:
+            compiled = _kernel.AVAILABLE
+        self.support_kernel = None
+        if compiled:
+            from humanoid_sim.kernel.stage import SupportKernel
+
+            self.support_kernel = SupportKernel(hm)
+        self.q = self.v = None
+        self.anchors = None
+        self.phase: Phase | None = None
+
+    # ------------------------------------------------------------------ state
+    def start(self, q0: np.ndarray, phase: Phase) -> None:
+        """At rest at q0, the phase's contacts held where q0 puts them."""
+        self.q = np.array(q0, dtype=float)
+        self.v = np.zeros(self.model.nv)
+        self.phase = phase
+        self.anchors = record_anchors(self.model, self.q, phase.contacts)
+        if self.support_kernel is not None:
+            self.support_kernel.warm_up(self.q, len(self.rk.tab.c))
+
+    def state_vectors(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.q, self.v
+
+    # ------------------------------------------------------------------ one step
+    def step(self, t: float, h: float, k: int, control: Callable[[Observation], Command],
+             checks: PhaseSelector) -> tuple:
+        """Advance (q, v) from t to t + h under the current phase's welds; the controller is called at every
+        stage.  Returns the step's log record (state at t and the stage-0 outputs)."""
+        phase, anchors = self.phase, self.anchors
+        stage0: list[tuple] = [()]
+
+        def f(ts: float, qs: np.ndarray, vs: np.ndarray, stage: int) -> np.ndarray:
+            checks.check_stage(ts, qs, vs, stage)
+            cmd = control(Observation(ts, k, phase, qs, vs, anchors, stage))
+            a, lam = self._motion(phase, anchors, qs, vs, cmd)
+            checks.check_acceleration(ts, a)
+            if stage == 0:
+                stage0[0] = self._stage0_record(phase, qs, vs, cmd, a, lam)
+            return a
+
+        q, v = self.q, self.v
+        if self.support_kernel is None:
+            q_new, v_new = self.rk.step(f, t, q, v, h, lambda qs, vs: self.project_on_support(phase, anchors, qs, vs))
+        else:
+            adv = self.support_kernel.advance
+            q_new, v_new = self.rk.step(f, t, q, v, h, advance=lambda *a: adv(phase, anchors, *a))
+        self.q, self.v = q_new, v_new
+        return (q, v) + stage0[0]
+
+    def _motion(self, phase: Phase, anchors, q: np.ndarray, v: np.ndarray, cmd: Command
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """(a, lam): the command's own motion when it was solved under this model, else the KKT forward dynamics."""
+        if cmd.motion is not None and cmd.motion_model is self.constraints:
+            return cmd.motion
+        if cmd.tau is None:  # thesis actuator torques only: tau = B(q) T
+            cmd.tau = self.act.torque_map(q) @ cmd.T
+            cmd.tau[:6] = 0.0
+        rows = self.dyn.prepare(phase.contacts, anchors, q, v)
+        fwd = self.dyn.forward_prepared(rows, cmd.tau)
+        return fwd.a, fwd.lam
+
+    def _stage0_record(self, phase: Phase, q: np.ndarray, v: np.ndarray, cmd: Command, a: np.ndarray,
+                       lam: np.ndarray) -> tuple:
+        """What the log needs from the first stage of a step, read while the solver still holds that state: the
+        command, the weld drifts, the dynamics residual and the task frames' positions, orientations and the hip
+        velocity."""
+        tau = cmd.tau
+        extra = cmd.extra or {}
+        lg = extra.get("kernel_log")
+        if lg is not None:  # the compiled stage computed the same quantities (layout: kernel.stage.StageOutput)
+            return (a, lam, cmd.theta_ddot_cmd, cmd.T_cmd, cmd.T, cmd.saturated, tau, lg[1], lg[2], lg[3], lg[4:7],
+                    lg[7:10], lg[10:19].reshape(3, 3), lg[19:22], lg[22:25], lg[25:34].reshape(3, 3),
+                    lg[34:43].reshape(3, 3))
+        rows = self.dyn.rows(phase.contacts)
+        d = self.dyn.data
+        M = extra.get("M")
+        if M is None:
+            M = symmetric_inertia(d.M)
+        residual = float(np.max(np.abs(M @ a + d.nle - tau - rows.J.T @ lam)))
+        pos = float(np.max(rows.weld_position_error)) if rows.weld_position_error.size else 0.0
+        ori = float(np.max(rows.weld_orientation_error)) if rows.weld_orientation_error.size else 0.0
+        model, fid = self.model, self.fid
+        place = {n: pin.updateFramePlacement(model, d, fid[n]) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1",
+                                                                          "O_2")}
+        hip_v = pin.getFrameVelocity(model, d, fid["Pc_17"], LWA).vector[:3].copy()
+        T, T_cmd, sat, thdd_c = cmd.T, cmd.T_cmd, cmd.saturated, cmd.theta_ddot_cmd
+        if T is None:  # a controller that gives joint torques only: the thesis components they amount to
+            T = T_cmd = self.act.thesis_torques(q, v, a, tau, kin_data=d)
+            sat = self._no_sat
+        if thdd_c is None:
+            thdd_c = np.full(26, np.nan)
+        return (a, lam, thdd_c, T_cmd, T, sat, tau, pos, ori, residual,
+                place["Pc_17"].translation.copy(), hip_v, place["O_17"].rotation.copy(),
+                place["P_tpR"].translation.copy(), place["P_tpL"].translation.copy(), place["O_1"].rotation.copy(),
+                place["O_2"].rotation.copy())
+
+    def project_on_support(self, phase: Phase, anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) with the support foot exactly at its anchor and at rest (see the module docstring).
+
+        The foot's LOCAL Jacobian does not depend on the base placement, and its base block is the action matrix
+        Ad(fMb) of the base seen from the foot frame, so the base twist is -Ad(bMf) J_joints v_joints."""
+        spec = FOOT_SPECS[phase.support_foot]
+        model, d = self.model, self.proj_data
+        q = q.copy()
+        v = v.copy()
+        lock_q, lock_v = self._lock_idx[spec.toe_joint]
+        q[lock_q] = anchors.joint_positions[spec.toe_joint]
+        v[lock_v] = 0.0
+        fid = self._weld_fid[spec.main_frame]
+        pin.forwardKinematics(model, d, q)
+        oMf = pin.updateFramePlacement(model, d, fid)
+        base = pin.XYZQUATToSE3(q[:7])
+        q[:7] = pin.SE3ToXYZQUAT(anchors.placements[spec.main_frame] * oMf.inverse() * base)
+        J = pin.computeFrameJacobian(model, d, q, fid, pin.ReferenceFrame.LOCAL)
+        v[:6] = -(base.actInv(oMf).toActionMatrix() @ (J[:, 6:] @ v[6:]))
+        return q, v
+
+    # ------------------------------------------------------------------ what the phase selector reads
+    def hip_com(self) -> np.ndarray:
+        """Body-17 CoM (world, m) at the current state (NaN when the state is not finite); updates the kinematics
+        that :meth:`toe_point` and :meth:`toe_rotation` read."""
+        if all_finite(self.q):
+            pin.forwardKinematics(self.model, self.data, self.q)
+            return pin.updateFramePlacement(self.model, self.data, self.fid["Pc_17"]).translation.copy()
+        return np.full(3, np.nan)
+
+    def toe_point(self, foot: str) -> np.ndarray:
+        """Toe point P_tp of ``foot`` ("R"/"L"), world, m, at the state of the last :meth:`hip_com`."""
+        return pin.updateFramePlacement(self.model, self.data, self.fid["P_tp" + foot]).translation.copy()
+
+    def toe_rotation(self, foot: str) -> np.ndarray:
+        """Orientation of the toe body of ``foot`` (O_1 / O_2) at the state of the last :meth:`hip_com`."""
+        pin.updateFramePlacements(self.model, self.data)
+        return self.data.oMf[self.fid["O_1" if foot == "R" else "O_2"]].rotation.copy()
+
+    # ------------------------------------------------------------------ phase changes
+    def touchdown(self, t: float, phase: Phase, foot: str, key: str) -> None:
+        """The swing foot landed (end of SSP ``phase``): the velocity reset of 4.5 (weights ``reset.<key>``) or the
+        inelastic impact, as the scenario's ``simulation.impact_law`` says."""
+        res = touchdown(self.model, self.q, self.v, phase, self.sc.simulation.impact_law, w_adj=self.sc.W_adj.get(key))
+        self.v = res.v_plus
+
+    def enter(self, phase: Phase) -> None:
+        """Start ``phase``: weld its contacts where they are now (held bodies keep their anchors)."""
+        self.anchors = record_anchors(self.model, self.q, phase.contacts, previous=self.anchors)
+        self.phase = phase
+
+    # ------------------------------------------------------------------ logging
+    def build_log(self, rows: list[tuple]) -> SimLog:
+        """The log from the loop's per-step records (t, k, phase, nominal reference, controller hip reference,
+        engine record): stacked, with the derived signals (thesis coordinates, unwrapped yaws, ground reactions,
+        centres of pressure, ZMP) computed in one pass after the loop."""
+        hm = self.hm
+        n = len(rows)
+        if n == 0:
+            return SimLog()
+        (t, k, phase, ref, hip_ctrl, q, v, a, lam, thdd_c, T_cmd, T, sat, tau, pos, ori, res, hip_p, hip_v, R17,
+         toe_R, toe_L, R1, R2) = zip(*rows)
+        Q, V, A = np.array(q), np.array(v), np.array(a)
+        thesis = lambda X: hm.theta_sign * X[:, hm.theta_v_idx]  # noqa: E731 -- v-ordered arrays -> thesis
+        bf, bm, fw, cop = self._reactions.batch(Q, V, A, [ph.contacts for ph in phase], lam)
+        stance = {ph: [f in ph.stance_feet for f in ("R", "L")] for ph in Phase}
+        contact = np.array([stance[ph] for ph in phase])
+        ftot = fw[:, :, :3].sum(axis=1)
+        mtot = fw[:, :, 3:].sum(axis=1)
+        zmp = np.full((n, 3), np.nan)
+        ok = ftot[:, 2] > 1e-9
+        zmp[ok] = np.stack([-mtot[ok, 1] / ftot[ok, 2], mtot[ok, 0] / ftot[ok, 2], np.zeros(ok.sum())], axis=1)
+        yaw0 = yaw_of(hm.spec.C0)
+        yaw, yaw_ref = np.empty(n), np.empty(n)
+        prev, prev_ref = yaw0, yaw0
+        for i in range(n):
+            prev = yaw[i] = unwrap_to(yaw_of(R17[i]), prev)
+            prev_ref = yaw_ref[i] = unwrap_to(yaw_of(ref[i].hip_R), prev_ref)
+        cols = dict(
+            t=np.array(t), phase=np.array(k), basic_phase=np.array([BASIC[ph] for ph in phase]), q=Q, v=V,
+            theta=hm.theta_sign * Q[:, hm.theta_q_idx], theta_dot=thesis(V), theta_ddot=thesis(A),
+            theta_ddot_cmd=np.array(thdd_c), T_cmd=np.array(T_cmd), T=np.array(T), saturated=np.array(sat),
+            tau=np.array(tau), hip_p=np.array(hip_p), hip_p_ref=np.array([r.hip_p for r in ref]),
+            hip_p_ctrl_ref=np.array(hip_ctrl), hip_v=np.array(hip_v), hip_v_ref=np.array([r.hip_v for r in ref]),
+            hip_R=np.array(R17), hip_R_ref=np.array([r.hip_R for r in ref]), hip_yaw=yaw, hip_yaw_ref=yaw_ref,
+            toe_R_p=np.array(toe_R), toe_R_p_ref=np.array([r.toe_R_p for r in ref]), toe_L_p=np.array(toe_L),
+            toe_L_p_ref=np.array([r.toe_L_p for r in ref]), foot_R_R=np.array(R1), foot_L_R=np.array(R2),
+            body_force=bf, body_moment=bm, foot_wrench=fw.reshape(n, 2, 6), cop=cop, in_contact=contact, zmp=zmp,
+            drift_position=np.array(pos), drift_orientation=np.array(ori), dynamics_residual=np.array(res))
+        return SimLog.from_columns(cols)
