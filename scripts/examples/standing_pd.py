@@ -59,7 +59,7 @@ def main() -> None:
     result = sim.run(t_end=args.seconds, hold=Phase.RFFDSP)  # double support for the whole run
     hip = result.log.arrays()["hip_p"]
     drift = np.linalg.norm(hip - hip[0], axis=1).max()
-    print(f"{result.reason}; hip drift max {drift * 1000:.3f} mm over {result.sim_time:.2f} s")
+    print(f"{result.reason}; hip drift max {drift * 1000:.3g} mm over {result.sim_time:.2f} s")
     args.out.mkdir(parents=True, exist_ok=True)
     result.log.save(args.out / "results.npz", [ph.name for ph in sim.traj.phases])
     from humanoid_sim.viewer import write_playback
