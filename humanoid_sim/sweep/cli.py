@@ -149,7 +149,7 @@ def _run(args: argparse.Namespace, spec, to_run, engine: str, out: Path, sink, w
         try:
             client = stack.enter_context(runner.dask_client(workers=workers if args.scheduler is None else None,
                                                             scheduler=args.scheduler))
-        except (OSError, TimeoutError, ValueError) as exc:
+        except Exception as exc:  # noqa: BLE001 - OSError, TimeoutError, Dask's RuntimeError("... failed to start")
             what = f"reach the scheduler at {args.scheduler}" if args.scheduler else "start the local Dask cluster"
             return _fail_input(f"cannot {what}: {type(exc).__name__}: {exc}")
         try:

@@ -1,7 +1,7 @@
 """Running a sweep's walks as Dask tasks: the cluster, submission, collection, faults and Ctrl-C.
 
 - :func:`dask_client`: by default a ``distributed.LocalCluster`` of ``n`` worker processes with one thread
-  each, scheduler and workers bound to 127.0.0.1, no dashboard; with a scheduler address, a ``Client`` of that
+  each, scheduler, workers and the scheduler's HTTP server (dashboard) bound to 127.0.0.1; with a scheduler address, a ``Client`` of that
   existing cluster.  The local workers are started with SIGINT ignored: Ctrl-C in the terminal reaches the
   whole process group, and it is the client's to handle (it keeps the finished rows and stops the cluster).
 - :func:`execute`: one task per walk (:func:`humanoid_sim.sweep.walk.walk_row`), collected as they finish.
@@ -72,8 +72,8 @@ def write_scenarios(out: Path, walks: list[Walk]) -> None:
 @contextmanager
 def dask_client(workers: int | None = None, scheduler: str | None = None, timeout_s: float = 30.0
                 ) -> Iterator[Any]:
-    """A ``distributed.Client``: of a new LocalCluster of ``workers`` processes (one thread each, bound to
-    127.0.0.1, dashboard off), or of the cluster at ``scheduler``.  Closed (and the local cluster stopped) on
+    """A ``distributed.Client``: of a new LocalCluster of ``workers`` processes (one thread each, everything bound
+    to 127.0.0.1), or of the cluster at ``scheduler``.  Closed (and the local cluster stopped) on
     exit.  Raises OSError / TimeoutError when the cluster cannot be started or reached."""
     from distributed import Client, LocalCluster
 
@@ -87,8 +87,10 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
     main = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None  # inherited by the workers
     try:
+        # the scheduler always serves HTTP (health, metrics; the dashboard when bokeh is installed): on
+        # 127.0.0.1, on a free port
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
     finally:
         if main:
             signal.signal(signal.SIGINT, previous)
