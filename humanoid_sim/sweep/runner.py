@@ -36,6 +36,15 @@ from humanoid_sim.sweep.table import TableSink
 from humanoid_sim.sweep.walk import WalkSetup, walk_row
 
 WALKS_DIR = "walks"
+LOCAL_WORKER_CONFIG = {
+    # Dask's sampling profiler (a thread walking the task's stack every 10 ms, for the dashboard's profile page)
+    # slows a walk by ~6 %; and Dask sets MALLOC_TRIM_THRESHOLD_=65536 in its workers (return freed memory to the
+    # OS early), which slows the walks' many small NumPy allocations by ~10 % (measured, scripts/bench_sweep.py).
+    # Walks hold a few MB: glibc's own (dynamic) threshold instead.  Local cluster only: a cluster reached with
+    # --scheduler keeps its own settings.
+    "distributed.worker.profile.enabled": False,
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+}
 
 
 @dataclass
@@ -84,13 +93,16 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
         finally:
             client.close(timeout=10)
         return
+    import dask
+
     main = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None  # inherited by the workers
     try:
         # the scheduler always serves HTTP (health, metrics; the dashboard when bokeh is installed): on
         # 127.0.0.1, on a free port
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
+        with dask.config.set(LOCAL_WORKER_CONFIG):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                   dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
     finally:
         if main:
             signal.signal(signal.SIGINT, previous)
