@@ -392,3 +392,26 @@ def test_ctrl_c_keeps_finished_rows_and_the_next_run_resumes(sweeps, tmp_path):
     by = {r["walk"]: r for r in rows}
     for r in kept:
         assert by[r["walk"]] == r   # not run again
+
+
+# --------------------------------------------------------------------------------------------- an edited sweep file
+def test_resume_after_editing_the_sweep_file(sweeps, tmp_path, monkeypatch, capsys):
+    """Rows are found by scenario: a walk both versions of the file generate is not run again and takes its new
+    walk index; a walk only the old file generated keeps its row, after this sweep's rows.  (An in-process
+    threads cluster: what is tested here is the bookkeeping, not the processes.)"""
+    @contextmanager
+    def threads(*a, **k):
+        with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as c:
+            yield c
+    monkeypatch.setattr(runner, "dask_client", threads)
+    out = tmp_path / "out"
+    a = write_yaml(sweeps["small"].parent / "edit_a.yaml", {"base": "short.yaml", "grid": {"path.SH[1]": [0.07, 0.08]}})
+    b = write_yaml(sweeps["small"].parent / "edit_b.yaml", {"base": "short.yaml", "grid": {"path.SH[1]": [0.08, 0.06]}})
+    assert cli.main([str(a), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    first = {r["path.SH[1]"]: r for r in read_rows(out)}
+    assert cli.main([str(b), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    assert "2 walks (2 path.SH[1]), 1 already in" in capsys.readouterr().err
+    rows = read_rows(out)
+    assert [(r["walk"], r["path.SH[1]"]) for r in rows] == [(0, 0.08), (1, 0.06), (0, 0.07)]
+    assert {k: v for k, v in rows[0].items() if k != "walk"} == {k: v for k, v in first[0.08].items() if k != "walk"}
+    assert rows[2] == first[0.07]

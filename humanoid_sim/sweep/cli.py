@@ -67,6 +67,14 @@ def _cores() -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    try:
+        return _main(args)
+    except KeyboardInterrupt:   # before any walk started (the sweep itself handles its own interrupt)
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 1
+
+
+def _main(args: argparse.Namespace) -> int:
     if args.workers is not None and args.scheduler is not None:
         return _fail_input("--workers: applies to the local cluster only; the cluster of --scheduler has its own "
                            "workers")
@@ -93,14 +101,21 @@ def main(argv: list[str] | None = None) -> int:
     engine = args.engine
     done = {row_key(r): r for r in previous}
     current = {(w.scenario_hash, engine) for w in walks}
+    renumbered = False
+    for w in walks:   # a row found by its scenario takes this sweep's walk index and parameter columns
+        row = done.get((w.scenario_hash, engine))
+        if row is not None and any(row.get(k) != v for k, v in {"walk": w.index, **w.params}.items()):
+            row.update(walk=w.index, **w.params)
+            renumbered = True
     to_run = [w for w in walks if (w.scenario_hash, engine) not in done
               or (args.retry_failed and done[(w.scenario_hash, engine)].get("failure_kind") in RETRY_KINDS)]
     params = [a.column for a in spec.axes]
     sink = TableSink(out, previous, params, current)
+    sink.dirty = renumbered
     workers = args.workers if args.workers is not None else _cores()
     where = (f"the cluster at {args.scheduler}" if args.scheduler else
              f"a local Dask cluster of {workers} worker process{'es' if workers != 1 else ''} (127.0.0.1)")
-    print(f"{args.sweep}: {len(walks)} walks ({' x '.join(_axis_size(spec, a) for a in spec.axes)}), "
+    print(f"{args.sweep}: {len(walks)} walks ({_shape(spec)}), "
           f"{len(walks) - len(to_run)} already in {out / 'sweep.parquet'}, {len(to_run)} to run on {where}, "
           f"engine {engine}", file=sys.stderr)
     stats = None
@@ -121,15 +136,18 @@ def main(argv: list[str] | None = None) -> int:
         _plots(spec, rows, out)
     _print_summary(rows, len(walks), stats, out)
     if stats is not None and stats.not_run:
-        print(f"{PROG}: {stats.not_run} walks were cancelled (the cluster or the connection was lost); run the same "
-              "command again to run them", file=sys.stderr)
+        print(f"{PROG}: {stats.not_run} walks have no row (cancelled: the cluster or the connection was lost, or "
+              "interrupted on a worker); run the same command again to run them", file=sys.stderr)
         return 1
     return 0
 
 
-def _axis_size(spec, axis) -> str:
-    n = len(axis.values) if axis.values != () else spec.n
-    return f"{n} {axis.column}"
+def _shape(spec) -> str:
+    """"4 path.Vhip:scale x 2 path.SW x 8 random samples of path.SH" """
+    parts = [f"{len(a.values)} {a.column}" for a in spec.grid]
+    if spec.random:
+        parts.append(f"{spec.n} random samples of {', '.join(a.column for a in spec.random)}")
+    return " x ".join(parts)
 
 
 def _run(args: argparse.Namespace, spec, to_run, engine: str, out: Path, sink, workers: int):
@@ -181,14 +199,14 @@ def _run(args: argparse.Namespace, spec, to_run, engine: str, out: Path, sink, w
 
 def _plots(spec, rows: list[dict], out: Path) -> None:
     from humanoid_sim.actuators import T_NAMES, Actuators
-    from humanoid_sim.sweep.plots import plot_feasibility, plot_sizing
+    from humanoid_sim.sweep.plots import actuator_labels, plot_feasibility, plot_sizing
     from humanoid_sim.sweep.walk import model
 
     limits = Actuators(model()).limits
     name = spec.source.name
     plot_sizing(rows, T_NAMES, limits, out / "sizing.png",
                 title=f"{name}: actuator sizing over {sum(1 for r in rows if r['completed'])} completed walks "
-                      f"(of {len(rows)})")
+                      f"(of {len(rows)})", labels=actuator_labels())
     plot_feasibility(rows, spec.axes, out / "feasibility.png", title=f"{name}: completion and contact feasibility")
 
 

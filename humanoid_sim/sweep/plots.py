@@ -37,10 +37,24 @@ def _num(x: Any) -> float:
     return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) and x is not None else math.nan
 
 
+def actuator_labels() -> list[str]:
+    """Axis labels of the 26 actuators (T-bar order): name, joint and moment axis in the higher body's frame
+    (x forward = roll, y left = pitch, z up = yaw at the zero posture)."""
+    from humanoid_sim.actuators import GROUPS
+
+    out = []
+    for g in GROUPS:
+        side, _, joint = g.name.partition("_") if g.name.startswith(("right_", "left_")) else ("", "", g.name)
+        joint = {"shoulder": "shldr"}.get(joint, joint)   # fits the tick spacing
+        for t, c in zip(g.T, g.comps):
+            out.append(f"{t}\n{side[:1].upper() + ' ' if side else ''}{joint}\n{('roll', 'pitch', 'yaw')[c]}")
+    return out
+
+
 def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Sequence[float], path: Path,
-                title: str = "") -> None:
+                title: str = "", labels: Sequence[str] | None = None) -> None:
     """Write the actuator-sizing figure of the completed ``rows`` to ``path`` (PNG).  ``names``: actuator names
-    (``T1`` ...), ``limits``: their saturation limits, N m."""
+    (``T1`` ...), ``limits``: their saturation limits, N m; ``labels``: tick labels (default: the names)."""
     plt = _plt()
     done = [r for r in rows if r.get("completed")]
     lim = np.asarray(limits, dtype=float)
@@ -48,7 +62,7 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
     demanded = [np.array([_num(r.get(f"torque_cmd_peak_Nm_{n}")) for r in done]) / lim[i] for i, n in enumerate(names)]
     saturating = [np.mean([_num(r.get(f"saturated_fraction_per_actuator_{n}")) > 0 for r in done]) if done else 0.0
                   for n in names]
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(13, 7.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     x = np.arange(len(names))
     if done:
         def box(data: list[np.ndarray], dx: float, colour: str, label: str) -> None:
@@ -76,8 +90,8 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
     ax2.set_ylim(0, 105)
     ax2.grid(axis="y", alpha=0.3)
     ax2.set_xticks(x)
-    ax2.set_xticklabels([f"{n}\n{v:g}" for n, v in zip(names, lim)], fontsize=8)
-    ax2.set_xlabel("actuator (thesis eq. 4.69 order) and its limit, N m")
+    ax2.set_xticklabels([f"{lb}\n{v:g}" for lb, v in zip(labels or names, lim)], fontsize=7)
+    ax2.set_xlabel("actuator (thesis eq. 4.69 order), joint, axis, and its limit in N m")
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

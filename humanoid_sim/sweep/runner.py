@@ -39,7 +39,7 @@ WALKS_DIR = "walks"
 LOCAL_WORKER_CONFIG = {
     # Dask's sampling profiler (a thread walking the task's stack every 10 ms, for the dashboard's profile page)
     # slows a walk by ~6 %; and Dask sets MALLOC_TRIM_THRESHOLD_=65536 in its workers (return freed memory to the
-    # OS early), which slows the walks' many small NumPy allocations by ~10 % (measured, scripts/bench_sweep.py).
+    # OS early), which slows the walks' many NumPy allocations by up to ~15 % (measured in a plain process).
     # Walks hold a few MB: glibc's own (dynamic) threshold instead.  Local cluster only: a cluster reached with
     # --scheduler keeps its own settings.
     "distributed.worker.profile.enabled": False,
