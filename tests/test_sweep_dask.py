@@ -20,6 +20,7 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+import distributed
 import numpy as np
 import pytest
 import yaml
@@ -32,7 +33,6 @@ from humanoid_sim.sweep import cli, runner
 from humanoid_sim.sweep.spec import load_sweep
 from humanoid_sim.sweep.table import read_rows
 
-distributed = pytest.importorskip("distributed")
 
 ROOT = Path(__file__).resolve().parents[1]
 SWEEP_PY = ROOT / "scripts" / "sweep.py"
@@ -202,7 +202,7 @@ def dask_cluster(tmp_path_factory):
 
     try:
         start(["distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-               "--scheduler-file", str(sched_file)], "scheduler.log")
+               "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(sched_file)], "scheduler.log")
         deadline = time.monotonic() + 60
         while not sched_file.exists():
             assert procs[0].poll() is None, (d / "scheduler.log").read_text()
@@ -210,10 +210,16 @@ def dask_cluster(tmp_path_factory):
             time.sleep(0.1)
         for i in range(2):
             start(["distributed.cli.dask_worker", "--scheduler-file", str(sched_file), "--nworkers", "1",
-                   "--nthreads", "1", "--host", "127.0.0.1", "--no-dashboard", "--name", f"w{i}"], f"worker{i}.log")
+                   "--nthreads", "1", "--host", "127.0.0.1", "--no-dashboard", "--dashboard-address", "127.0.0.1:0",
+                   "--name", f"w{i}"], f"worker{i}.log")
         client = distributed.Client(scheduler_file=str(sched_file), timeout="30s")
         client.wait_for_workers(2, timeout=120)
-        assert client.scheduler.address.startswith("tcp://127.0.0.1:")
+        info = client.scheduler_info()
+        ports = [int(a.rsplit(":", 1)[1]) for a in [info["address"], *info["workers"]]]
+        ports += [info["services"]["dashboard"]] + [w["nanny"] and int(w["nanny"].rsplit(":", 1)[1])
+                                                   for w in info["workers"].values()]
+        for port in ports:   # scheduler, its HTTP server, workers, nannies: loopback only
+            assert listening_hosts(port) in ({"127.0.0.1"}, None), (port, listening_hosts(port))
         yield client
     finally:
         if client is not None:
@@ -269,21 +275,24 @@ def test_scheduler_rows_equal_serial_runs_and_one_model_per_worker(dask_cluster,
 
 
 def _kill_a_busy_worker(client, out: Path, proc: subprocess.Popen) -> tuple[int, int, list[int]]:
-    """Once the sweep has written a row and a worker is processing a walk, SIGKILL that worker process; returns
-    its pid, the rows written before, and the walks (indices) it was processing."""
+    """Once the sweep has written a row, SIGKILL the first worker process seen starting a new walk (polled every
+    ~50 ms: the walk, ~1.2 s long, is then surely still running); returns its pid, the rows written before, and
+    the walks (indices) it was running."""
     deadline = time.monotonic() + 120
+    seen: set[str] = set()
     while True:
         assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline, "no row and busy worker within 120 s"
-        busy = {w: [int(str(k).split("-")[1]) for k in keys if str(k).startswith("walk-")]
-                for w, keys in client.processing().items()}
-        busy = {w: ks for w, ks in busy.items() if ks}
+        assert time.monotonic() < deadline, "no row and no walk starting within 120 s"
+        running = client.run(lambda dask_worker: [str(ts.key) for ts in dask_worker.state.executing])
+        started = {w: [k for k in keys if k.startswith("walk-") and k not in seen] for w, keys in running.items()}
         n_rows = len(read_rows(out)) if (out / "sweep.parquet").exists() else 0
-        if n_rows and busy:
-            addr, walks = next(iter(busy.items()))
+        busy = [w for w, keys in started.items() if keys]
+        if n_rows and busy and seen:
+            addr = busy[0]
             pid = client.run(os.getpid, workers=[addr])[addr]
             os.kill(pid, signal.SIGKILL)
-            return pid, n_rows, walks
+            return pid, n_rows, [int(k.split("-")[1]) for k in started[addr]]
+        seen.update(k for keys in running.values() for k in keys)
         time.sleep(0.05)
 
 
@@ -301,8 +310,7 @@ def test_fault_diverging_walk_and_killed_worker_still_give_every_row(dask_cluste
     assert by[5]["completed"] is False and by[5]["failure_kind"] == "simulation"
     assert by[5]["reason"].startswith(("diverged at t = ", "fall: hip CoM height"))
     assert all(by[i]["completed"] for i in range(5))
-    # Dask ran the killed worker's walk again elsewhere (or, in a race, it had just finished before the kill)
-    assert any(not by[i]["worker"].endswith(f":{killed}") for i in hit)
+    assert hit and all(not by[i]["worker"].endswith(f":{killed}") for i in hit)   # Dask ran it again elsewhere
     dask_cluster.wait_for_workers(2, timeout=120)   # the nanny restarts the worker
     assert killed not in [s["pid"] for s in stats(dask_cluster).values()]
     assert "6 of 6 walks: 5 completed, 1 failed (1 simulation)" in stdout
@@ -333,7 +341,8 @@ def test_killed_worker_row_resume_and_retry(dask_cluster, sweeps, tmp_path):
     rows = read_rows(out)
     assert sorted(r["walk"] for r in rows) == [0, 1, 2, 3]
     lost = [r for r in rows if r["failure_kind"] == "worker_lost"]
-    assert lost and all(r["completed"] is False for r in lost) and {r["walk"] for r in lost} <= set(hit)
+    # the walk it was running, and any walk already queued on it
+    assert hit and set(hit) <= {r["walk"] for r in lost} and all(r["completed"] is False for r in lost)
     assert all(r["reason"].startswith("worker process died while running this walk") for r in lost)
     assert all(r["completed"] for r in rows if r["failure_kind"] != "worker_lost")
     dask_cluster.wait_for_workers(2, timeout=120)
@@ -401,7 +410,9 @@ def test_resume_after_editing_the_sweep_file(sweeps, tmp_path, monkeypatch, caps
     threads cluster: what is tested here is the bookkeeping, not the processes.)"""
     @contextmanager
     def threads(*a, **k):
-        with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as c:
+        # in-process (inproc:// transport, no socket); its HTTP server on 127.0.0.1
+        with distributed.Client(processes=False, n_workers=1, threads_per_worker=1,
+                                dashboard_address="127.0.0.1:0") as c:
             yield c
     monkeypatch.setattr(runner, "dask_client", threads)
     out = tmp_path / "out"
