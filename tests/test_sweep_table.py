@@ -153,3 +153,55 @@ def test_sink_writes_as_rows_arrive_and_sorts_this_sweeps_rows_first(tmp_path):
     sink.flush()
     assert read_rows(tmp_path)[0]["completed"] is False
     assert json.loads(json.dumps(read_rows(tmp_path)))  # plain values
+
+
+# --------------------------------------------------------------------------------------------- figures
+def test_feasibility_cells_count_and_average_by_hand(tmp_path):
+    from humanoid_sim.sweep.plots import feasibility_cells, plot_feasibility, plot_sizing
+    from humanoid_sim.sweep.spec import load_sweep
+
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(yaml.safe_dump({"base": str(ROOT / "scripts" / "params" / "sim3.yaml"),
+                                     "grid": {"path.Vhip": {"scale": [0.9, 1.1]}, "path.SW": [0.28, 0.3, 0.32],
+                                              "path.SH": [0.07, 0.08]}}, sort_keys=False))
+    spec = load_sweep(sweep)
+    walks = spec.expand()
+    rows = []
+    for w in walks:   # walk k: completed unless k % 3 == 0; saturated fraction k / 100; one audit missing
+        rows.append({**w.params, "walk": w.index, "completed": w.index % 3 != 0,
+                     "saturated_fraction": w.index / 100, "contact_infeasible_fraction": None if w.index == 4 else 0.5})
+    xs, ys, n, ok, (sat, inf) = feasibility_cells(rows, *spec.axes[:2])
+    assert xs == [0.9, 1.1] and ys == [0.28, 0.3, 0.32]
+    # cell (x, y) pools the two path.SH walks: indices 6 i + 2 j and 6 i + 2 j + 1
+    for i in range(2):
+        for j in range(3):
+            ks = [6 * i + 2 * j, 6 * i + 2 * j + 1]
+            done = [k for k in ks if k % 3 != 0]
+            assert n[j, i] == 2 and ok[j, i] == len(done)
+            assert sat[j, i] == pytest.approx(np.mean([k / 100 for k in done]), abs=1e-15)   # mean of 1-2 values
+            has = [k for k in done if k != 4]
+            assert (np.isnan(inf[j, i]) and not has) or inf[j, i] == 0.5
+    plot_feasibility(rows, spec.axes, tmp_path / "grid.png")
+    plot_feasibility(rows, spec.axes[:1], tmp_path / "one_axis.png")
+    plot_sizing([], T_NAMES, [1.0] * 26, tmp_path / "none.png")   # no completed walk: an empty, labelled figure
+    for name in ("grid.png", "one_axis.png", "none.png"):
+        assert (tmp_path / name).stat().st_size > 10_000
+
+
+def test_the_thesis_engine_runs_the_walk(hm):
+    """--engine thesis reaches the thesis oracle (two steps of it: ~0.3 s), with the same summary as running it
+    directly."""
+    from humanoid_sim.scenario import parse_scenario
+    from humanoid_sim.summary import summarize_with_audit
+    from humanoid_sim.thesis.walk import ThesisSimulator
+
+    doc = copy.deepcopy(SIM3)
+    doc["simulation"]["t_end_s"] = 0.02
+    s = run_walk(doc, "thesis")
+    sc = parse_scenario(doc)
+    sim = ThesisSimulator(hm, sc)
+    res = sim.run()
+    direct = summarize_with_audit(res, sc, "thesis", hm, [p.name for p in sim.traj.phases])
+    assert s["engine"] == "thesis" and s["steps"] == 2 and "compiled_stages" not in s
+    wall = ("wall_time_s", "real_time_factor", "torque_rms_Nm")
+    assert {k: v for k, v in s.items() if k not in wall} == {k: v for k, v in direct.items() if k not in wall}

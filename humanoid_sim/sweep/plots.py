@@ -110,6 +110,36 @@ METRICS = (("saturated_fraction", "steps with an actuator saturated, fraction"),
 """Row columns the feasibility map shows next to completion (mean over the completed walks), with their titles."""
 
 
+def feasibility_cells(rows: Sequence[dict[str, Any]], ax_x: Axis, ax_y: Axis | None
+                      ) -> tuple[list, list, np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The cells of the map over two grid axes: x values, y values ([None] without ``ax_y``), walks per cell
+    ``n`` and completed walks ``ok`` (arrays [y, x]), and per :data:`METRICS` column its mean over the completed
+    walks of the cell that have it (NaN where none).  Rows whose values are not on the axes are left out."""
+    xs = [ax_x.cell(v) for v in ax_x.values]
+    ys = [ax_y.cell(v) for v in ax_y.values] if ax_y is not None else [None]
+    n = np.zeros((len(ys), len(xs)))
+    ok = np.zeros_like(n)
+    sums = [np.zeros_like(n) for _ in METRICS]
+    counts = [np.zeros_like(n) for _ in METRICS]
+    for r in rows:
+        try:
+            i = xs.index(r.get(ax_x.column))
+            j = ys.index(r.get(ax_y.column)) if ax_y is not None else 0
+        except ValueError:
+            continue
+        n[j, i] += 1
+        if not r.get("completed"):
+            continue
+        ok[j, i] += 1
+        for m, (col, _) in enumerate(METRICS):
+            v = _num(r.get(col))
+            if np.isfinite(v):
+                sums[m][j, i] += v
+                counts[m][j, i] += 1
+    means = [np.where(c > 0, sm / np.maximum(c, 1), np.nan) for sm, c in zip(sums, counts)]
+    return xs, ys, n, ok, means
+
+
 def plot_feasibility(rows: Sequence[dict[str, Any]], axes: Sequence[Axis], path: Path, title: str = "") -> None:
     """Write the completion/feasibility map of ``rows`` over the first two of ``axes`` to ``path`` (PNG): the
     share of walks that completed, then each of :data:`METRICS` averaged over the completed walks."""
@@ -121,33 +151,13 @@ def plot_feasibility(rows: Sequence[dict[str, Any]], axes: Sequence[Axis], path:
     metrics = [np.array([_num(r.get(col)) for r in rows]) for col, _ in METRICS]
     ylabel = ax_y.column if ax_y is not None else ""
     if ax_x.values != () and (ax_y is None or ax_y.values != ()):   # grid x grid: a table of cells
-        xs = [ax_x.cell(v) for v in ax_x.values]
-        ys = [ax_y.cell(v) for v in ax_y.values] if ax_y is not None else [None]
-        n = np.zeros((len(ys), len(xs)))
-        ok = np.zeros_like(n)
-        sums = [np.zeros_like(n) for _ in METRICS]
-        counts = [np.zeros_like(n) for _ in METRICS]
-        for k, r in enumerate(rows):
-            try:
-                i = xs.index(r.get(ax_x.column))
-                j = ys.index(r.get(ax_y.column)) if ax_y is not None else 0
-            except ValueError:
-                continue
-            n[j, i] += 1
-            if completed[k]:
-                ok[j, i] += 1
-                for m, vals in enumerate(metrics):
-                    if np.isfinite(vals[k]):
-                        sums[m][j, i] += vals[k]
-                        counts[m][j, i] += 1
-        with np.errstate(invalid="ignore", divide="ignore"):
-            grids = [(np.where(n > 0, ok / n, np.nan), "RdYlGn", "walks completed",
-                      [[f"{int(ok[j, i])}/{int(n[j, i])}" for i in range(len(xs))] for j in range(len(ys))])]
-            for m, (_, label) in enumerate(METRICS):
-                mean = np.where(counts[m] > 0, sums[m] / counts[m], np.nan)
-                grids.append((mean, "RdYlGn_r", label + ",\nmean over completed walks",
-                              [["-" if not np.isfinite(mean[j, i]) else f"{mean[j, i]:.2f}" for i in range(len(xs))]
-                               for j in range(len(ys))]))
+        xs, ys, n, ok, means = feasibility_cells(rows, ax_x, ax_y)
+        grids = [(np.where(n > 0, ok / np.maximum(n, 1), np.nan), "RdYlGn", "walks completed",
+                  [[f"{int(ok[j, i])}/{int(n[j, i])}" for i in range(len(xs))] for j in range(len(ys))])]
+        for mean, (_, label) in zip(means, METRICS):
+            grids.append((mean, "RdYlGn_r", label + ",\nmean over completed walks",
+                          [["-" if not np.isfinite(mean[j, i]) else f"{mean[j, i]:.2f}" for i in range(len(xs))]
+                           for j in range(len(ys))]))
         for panel, (data, cmap, label, texts) in zip(panels, grids):
             im = panel.imshow(np.ma.masked_invalid(data), origin="lower", cmap=cmap, vmin=0.0, vmax=1.0, aspect="auto")
             for j in range(len(ys)):
