@@ -277,3 +277,17 @@ def test_speed_step_lists_every_gait_the_schema_accepts():
             continue
         accepted.add(gait)
     assert _gait_axis_values() == accepted
+
+
+def test_an_unreachable_scheduler_exits_2_with_nothing_written(tmp_path, capsys, monkeypatch):
+    import socket
+
+    with socket.socket() as sock:   # a port nothing listens on (bound, closed)
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    monkeypatch.setattr(runner, "CONNECT_TIMEOUT_S", 1.0)   # Dask retries connecting until its timeout
+    out = tmp_path / "out"
+    assert cli.main([str(SPEED_STEP), "--out", str(out), "--scheduler", f"tcp://127.0.0.1:{port}", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"humanoid-sweep: error: cannot reach the scheduler at tcp://127.0.0.1:{port}: " in err
+    assert not out.exists()

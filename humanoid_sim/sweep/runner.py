@@ -36,6 +36,8 @@ from humanoid_sim.sweep.table import TableSink
 from humanoid_sim.sweep.walk import WalkSetup, walk_row
 
 WALKS_DIR = "walks"
+CONNECT_TIMEOUT_S = 30.0
+"""How long a client tries to reach a scheduler (or the local one to start), s."""
 LOCAL_WORKER_CONFIG = {
     # Dask's sampling profiler (a thread walking the task's stack every 10 ms, for the dashboard's profile page)
     # slows a walk by ~6 %; and Dask sets MALLOC_TRIM_THRESHOLD_=65536 in its workers (return freed memory to the
@@ -79,13 +81,15 @@ def write_scenarios(out: Path, walks: list[Walk]) -> None:
 
 
 @contextmanager
-def dask_client(workers: int | None = None, scheduler: str | None = None, timeout_s: float = 30.0
+def dask_client(workers: int | None = None, scheduler: str | None = None, timeout_s: float | None = None
                 ) -> Iterator[Any]:
     """A ``distributed.Client``: of a new LocalCluster of ``workers`` processes (one thread each, everything bound
     to 127.0.0.1), or of the cluster at ``scheduler``.  Closed (and the local cluster stopped) on
     exit.  Raises OSError / TimeoutError when the cluster cannot be started or reached."""
     from distributed import Client, LocalCluster
 
+    if timeout_s is None:
+        timeout_s = CONNECT_TIMEOUT_S
     if scheduler is not None:
         client = Client(scheduler, timeout=f"{timeout_s}s")
         try:
