@@ -62,3 +62,21 @@ def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, A
                          "touchdown_error_m": p.touchdown_error_m, "landing_tilt_rad": p.landing_tilt_rad}
                         for p in result.phases]
     return out
+
+
+def summarize_with_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
+                         phase_names: list[str]) -> dict[str, Any]:
+    """:func:`summarize` plus the contact-feasibility audit (:func:`humanoid_sim.audit.audit_results`) as its
+    ``contact`` section (``{"error": message}`` when the log is inconsistent with the phase contact sets), as
+    ``walk.py`` writes summary.json.  ``scenario``: the :class:`humanoid_sim.scenario.Scenario` run (its name and
+    friction coefficient); ``phase_names``: the run's planned phase names (``[p.name for p in traj.phases]``)."""
+    from humanoid_sim.audit import AuditError, audit_results
+
+    summary = summarize(result, scenario.name, engine)
+    try:
+        report = audit_results({**result.log.arrays(), "phase_names": np.array(phase_names)}, hm,
+                               scenario.contact.friction_coefficient)
+        summary["contact"] = report.summary()
+    except AuditError as exc:
+        summary["contact"] = {"error": str(exc)}
+    return summary

@@ -1,0 +1,9 @@
+"""Parameter sweeps: many walks of one base scenario, run as Dask tasks (issue #16).
+
+- :mod:`.spec`: the sweep file (``base``, ``grid``, ``random``), its validation and its expansion into walks;
+- :mod:`.walk`: one walk on a worker (model and kernel loaded once per process) and its table row;
+- :mod:`.runner`: the Dask execution (LocalCluster by default, or a scheduler address), resume, faults, Ctrl-C;
+- :mod:`.table`: rows -> ``sweep.parquet`` and ``sweep.csv``, written atomically;
+- :mod:`.plots`: the actuator-sizing figure and the completion/feasibility map;
+- :mod:`.cli`: the ``humanoid-sweep`` command (``scripts/sweep.py``).
+"""

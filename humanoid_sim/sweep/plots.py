@@ -1,0 +1,210 @@
+"""Figures of a sweep: actuator sizing (``sizing.png``) and the completion/feasibility map (``feasibility.png``).
+
+- :func:`plot_sizing`: per actuator (the 26 thesis torques T1..T26, eq. 4.69 order), the distribution over the
+  completed walks of the peak applied |T| and of the peak commanded |T_cmd| (what the controller asked for before
+  saturation), both as a fraction of the actuator's saturation limit (:attr:`humanoid_sim.actuators.Actuators.limits`);
+  below, the share of completed walks in which the actuator saturated at least once.
+- :func:`plot_feasibility`: over the first two swept parameters, the share of walks that completed, the
+  fraction of steps with a saturated actuator and the contact audit's infeasible fraction of steps (both means
+  over the completed walks).  Grid parameters give a table of cells (other parameters pooled in each cell);
+  when a random parameter is among the two, one marker per walk.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from humanoid_sim.sweep.spec import Axis
+
+FAILED_COLOUR = "#c0392b"
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _num(x: Any) -> float:
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) and x is not None else math.nan
+
+
+def actuator_labels() -> list[str]:
+    """Axis labels of the 26 actuators (T-bar order): name, joint and moment axis in the higher body's frame
+    (x forward = roll, y left = pitch, z up = yaw at the zero posture)."""
+    from humanoid_sim.actuators import GROUPS
+
+    out = []
+    for g in GROUPS:
+        side, _, joint = g.name.partition("_") if g.name.startswith(("right_", "left_")) else ("", "", g.name)
+        joint = {"shoulder": "shldr"}.get(joint, joint)   # fits the tick spacing
+        for t, c in zip(g.T, g.comps):
+            out.append(f"{t}\n{side[:1].upper() + ' ' if side else ''}{joint}\n{('roll', 'pitch', 'yaw')[c]}")
+    return out
+
+
+def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Sequence[float], path: Path,
+                title: str = "", labels: Sequence[str] | None = None) -> None:
+    """Write the actuator-sizing figure of the completed ``rows`` to ``path`` (PNG).  ``names``: actuator names
+    (``T1`` ...), ``limits``: their saturation limits, N m; ``labels``: tick labels (default: the names)."""
+    plt = _plt()
+    done = [r for r in rows if r.get("completed")]
+    lim = np.asarray(limits, dtype=float)
+    applied = [np.array([_num(r.get(f"torque_peak_Nm_{n}")) for r in done]) / lim[i] for i, n in enumerate(names)]
+    demanded = [np.array([_num(r.get(f"torque_cmd_peak_Nm_{n}")) for r in done]) / lim[i] for i, n in enumerate(names)]
+    saturating = [np.mean([_num(r.get(f"saturated_fraction_per_actuator_{n}")) > 0 for r in done]) if done else 0.0
+                  for n in names]
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    x = np.arange(len(names))
+    if done:
+        def box(data: list[np.ndarray], dx: float, colour: str, label: str) -> None:
+            clean = [d[np.isfinite(d)] for d in data]
+            bp = ax.boxplot(clean, positions=x + dx, widths=0.32, patch_artist=True, showfliers=True,
+                            flierprops={"markersize": 3, "markeredgecolor": colour},
+                            medianprops={"color": "black"}, whis=(0, 100))
+            for b in bp["boxes"]:
+                b.set_facecolor(colour)
+                b.set_alpha(0.75)
+            ax.plot([], [], "s", color=colour, label=label)
+
+        box(applied, -0.18, "#2e86c1", "peak applied |T| (after saturation)")
+        box(demanded, 0.18, "#aab7b8", "peak commanded |T_cmd| (before saturation)")
+    else:
+        ax.text(0.5, 0.5, "no completed walk", transform=ax.transAxes, ha="center", va="center", fontsize=14)
+    ax.axhline(1.0, color=FAILED_COLOUR, ls=":", lw=1.5, label="saturation limit")
+    ax.set_ylabel("peak torque / limit")
+    ax.set_ylim(bottom=0.0)
+    ax.legend(loc="upper right", fontsize=8)
+    ax.grid(axis="y", alpha=0.3)
+    ax.set_title(title or f"Actuator sizing over {len(done)} completed walks (of {len(rows)})")
+    ax2.bar(x, 100 * np.asarray(saturating, dtype=float), color="#e67e22")
+    ax2.set_ylabel("walks\nsaturating, %")
+    ax2.set_ylim(0, 105)
+    ax2.grid(axis="y", alpha=0.3)
+    ax2.set_xticks(x)
+    ax2.set_xticklabels([f"{lb}\n{v:g}" for lb, v in zip(labels or names, lim)], fontsize=7)
+    ax2.set_xlabel("actuator (thesis eq. 4.69 order), joint, axis, and its limit in N m")
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _label(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    s = v if isinstance(v, str) else json.dumps(v)
+    return s if len(s) <= 18 else s[:15] + "..."
+
+
+METRICS = (("saturated_fraction", "steps with an actuator saturated, fraction"),
+           ("contact_infeasible_fraction", "contact-infeasible steps, fraction (audit)"))
+"""Row columns the feasibility map shows next to completion (mean over the completed walks), with their titles."""
+
+
+def feasibility_cells(rows: Sequence[dict[str, Any]], ax_x: Axis, ax_y: Axis | None
+                      ) -> tuple[list, list, np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The cells of the map over two grid axes: x values, y values ([None] without ``ax_y``), walks per cell
+    ``n`` and completed walks ``ok`` (arrays [y, x]), and per :data:`METRICS` column its mean over the completed
+    walks of the cell that have it (NaN where none).  Rows whose values are not on the axes are left out."""
+    xs = [ax_x.cell(v) for v in ax_x.values]
+    ys = [ax_y.cell(v) for v in ax_y.values] if ax_y is not None else [None]
+    n = np.zeros((len(ys), len(xs)))
+    ok = np.zeros_like(n)
+    sums = [np.zeros_like(n) for _ in METRICS]
+    counts = [np.zeros_like(n) for _ in METRICS]
+    for r in rows:
+        try:
+            i = xs.index(r.get(ax_x.column))
+            j = ys.index(r.get(ax_y.column)) if ax_y is not None else 0
+        except ValueError:
+            continue
+        n[j, i] += 1
+        if not r.get("completed"):
+            continue
+        ok[j, i] += 1
+        for m, (col, _) in enumerate(METRICS):
+            v = _num(r.get(col))
+            if np.isfinite(v):
+                sums[m][j, i] += v
+                counts[m][j, i] += 1
+    means = [np.where(c > 0, sm / np.maximum(c, 1), np.nan) for sm, c in zip(sums, counts)]
+    return xs, ys, n, ok, means
+
+
+def plot_feasibility(rows: Sequence[dict[str, Any]], axes: Sequence[Axis], path: Path, title: str = "") -> None:
+    """Write the completion/feasibility map of ``rows`` over the first two of ``axes`` to ``path`` (PNG): the
+    share of walks that completed, then each of :data:`METRICS` averaged over the completed walks."""
+    plt = _plt()
+    ax_x = axes[0]
+    ax_y = axes[1] if len(axes) > 1 else None
+    fig, panels = plt.subplots(1, 1 + len(METRICS), figsize=(6 * (1 + len(METRICS)), 5))
+    completed = np.array([bool(r.get("completed")) for r in rows])
+    metrics = [np.array([_num(r.get(col)) for r in rows]) for col, _ in METRICS]
+    ylabel = ax_y.column if ax_y is not None else ""
+    if ax_x.values != () and (ax_y is None or ax_y.values != ()):   # grid x grid: a table of cells
+        xs, ys, n, ok, means = feasibility_cells(rows, ax_x, ax_y)
+        grids = [(np.where(n > 0, ok / np.maximum(n, 1), np.nan), "RdYlGn", "walks completed",
+                  [[f"{int(ok[j, i])}/{int(n[j, i])}" for i in range(len(xs))] for j in range(len(ys))])]
+        for mean, (_, label) in zip(means, METRICS):
+            grids.append((mean, "RdYlGn_r", label + ",\nmean over completed walks",
+                          [["-" if not np.isfinite(mean[j, i]) else f"{mean[j, i]:.2f}" for i in range(len(xs))]
+                           for j in range(len(ys))]))
+        for panel, (data, cmap, label, texts) in zip(panels, grids):
+            im = panel.imshow(np.ma.masked_invalid(data), origin="lower", cmap=cmap, vmin=0.0, vmax=1.0, aspect="auto")
+            for j in range(len(ys)):
+                for i in range(len(xs)):
+                    panel.text(i, j, texts[j][i], ha="center", va="center", fontsize=9)
+            panel.set_xticks(range(len(xs)))
+            panel.set_xticklabels([_label(v) for v in xs], fontsize=8)
+            panel.set_yticks(range(len(ys)))
+            panel.set_yticklabels([_label(v) for v in ys] if ax_y is not None else [""], fontsize=8)
+            panel.set_xlabel(ax_x.column, fontsize=8)
+            panel.set_ylabel(ylabel, fontsize=8)
+            panel.set_title(label, fontsize=10)
+            fig.colorbar(im, ax=panel, fraction=0.046)
+    else:   # a random parameter among the two: one marker per walk
+        def coords(axis: Axis | None) -> tuple[np.ndarray, list[str] | None]:
+            if axis is None:
+                return np.zeros(len(rows)), None
+            vals = [r.get(axis.column) for r in rows]
+            if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals):
+                return np.array(vals, dtype=float), None
+            cats = list(dict.fromkeys(_label(v) for v in vals))
+            return np.array([cats.index(_label(v)) for v in vals], dtype=float), cats
+
+        x, xcats = coords(ax_x)
+        y, ycats = coords(ax_y)
+        for k, panel in enumerate(panels):
+            if k == 0:
+                panel.scatter(x[completed], y[completed], c="#27ae60", marker="o", s=30, label="completed")
+                panel.set_title("walks: completed (o) or failed (x)", fontsize=10)
+            else:
+                sc = panel.scatter(x[completed], y[completed], c=metrics[k - 1][completed], cmap="RdYlGn_r",
+                                   vmin=0.0, vmax=1.0, marker="o", s=30)
+                fig.colorbar(sc, ax=panel, fraction=0.046)
+                panel.set_title(METRICS[k - 1][1] + ",\ncompleted walks", fontsize=10)
+            panel.scatter(x[~completed], y[~completed], c=FAILED_COLOUR, marker="x", s=30, label="failed")
+            panel.set_xlabel(ax_x.column, fontsize=8)
+            panel.set_ylabel(ylabel, fontsize=8)
+            if xcats:
+                panel.set_xticks(range(len(xcats)))
+                panel.set_xticklabels(xcats, fontsize=8)
+            if ycats:
+                panel.set_yticks(range(len(ycats)))
+                panel.set_yticklabels(ycats, fontsize=8)
+            panel.grid(alpha=0.3)
+        panels[0].legend(fontsize=8)
+    fig.suptitle(title or f"Completion and feasibility over {len(rows)} walks")
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,193 @@
+"""One walk of a sweep: a scenario document -> its summary -> one table row.  Runs in a Dask worker process.
+
+Per process, the model (URDF parse, :func:`humanoid_sim.model.load_model`) is built once and cached
+(:func:`model`); the compiled kernel (numba, loaded from its disk cache) is loaded by the first simulator the
+process constructs and reused by every later one (numba's dispatchers live in the module).  :class:`WalkSetup`
+(a Dask ``WorkerPlugin``) does both when a worker joins, before its first task.  :data:`STATS` counts model loads
+and walks per process (``Client.run(worker_stats)`` reads it: a test checks one model load per worker).
+
+:func:`run_walk` is the only function here that knows how a walk is run (the simulator, the summary, the
+contact audit); everything else goes through it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import socket
+import threading
+import time
+from typing import Any
+
+import numpy as np
+
+ENGINE_NAMES: tuple[str, ...] = ("pinocchio", "thesis")
+"""Engines ``humanoid-sweep --engine`` accepts, in the order the help lists them (the one list to extend)."""
+
+STATS: dict[str, int] = {"model_loads": 0, "walks": 0, "warm_ups": 0}
+"""Per-process counters: model loads, walks run (:func:`walk_row` calls), worker warm-ups."""
+
+_CACHE: dict[str, Any] = {}
+_LOCK = threading.Lock()   # the warm-up thread and the first task may ask for the model at once
+
+STOPPED_PREFIX = "stopped at"               # the simulator's reason when the requested stop time is reached
+INTERRUPTED_PREFIX = "interrupted by the user"   # its reason after a KeyboardInterrupt
+
+
+def model() -> Any:
+    """The humanoid model of this process (built on the first call, then reused)."""
+    with _LOCK:
+        if "hm" not in _CACHE:
+            from humanoid_sim.model import load_model
+
+            _CACHE["hm"] = load_model()
+            STATS["model_loads"] += 1
+        return _CACHE["hm"]
+
+
+def _simulator(engine: str, hm: Any, sc: Any) -> Any:
+    if engine == "pinocchio":
+        from humanoid_sim.simulate import Simulator
+
+        return Simulator(hm, sc)
+    if engine == "thesis":
+        from humanoid_sim.thesis.walk import ThesisSimulator
+
+        return ThesisSimulator(hm, sc)
+    raise ValueError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
+
+
+def torque_rms(T: np.ndarray) -> np.ndarray:
+    """Root mean square over the logged steps of each actuator torque, N m: ``T`` (N, 26) -> (26,); NaN when
+    N = 0.  The step is fixed, so this is the RMS over time (what sizes a motor's continuous rating)."""
+    T = np.asarray(T, dtype=float)
+    if T.shape[0] == 0:
+        return np.full(T.shape[1], np.nan)
+    return np.sqrt(np.mean(T * T, axis=0))
+
+
+def run_walk(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, Any]:
+    """Simulate the scenario document ``doc`` on ``engine`` and return its summary (``summary.json``'s content:
+    :func:`humanoid_sim.summary.summarize_with_audit`) plus ``torque_rms_Nm`` (actuator name -> RMS |T|, N m).
+    Raises on a scenario or engine error; a walk that fails in the simulator returns normally with
+    ``completed = false`` and its reason."""
+    from humanoid_sim.actuators import T_NAMES
+    from humanoid_sim.scenario import parse_scenario
+    from humanoid_sim.summary import summarize_with_audit
+
+    sc = parse_scenario(doc, source)
+    hm = model()
+    sim = _simulator(engine, hm, sc)
+    result = sim.run()
+    summary = summarize_with_audit(result, sc, engine, hm, [p.name for p in sim.traj.phases])
+    rms = torque_rms(result.log.arrays()["T"]) if len(result.log) else np.full(len(T_NAMES), np.nan)
+    out: dict[str, Any] = {}
+    for k, v in summary.items():   # torque_rms_Nm next to torque_peak_Nm
+        out[k] = v
+        if k == "torque_peak_Nm":
+            out["torque_rms_Nm"] = {name: float(x) if np.isfinite(x) else None for name, x in zip(T_NAMES, rms)}
+    return out
+
+
+# --------------------------------------------------------------------------------------------- rows
+_NOT_COLUMNS = ("scenario", "engine", "completed", "reason", "phase_log")
+
+
+def flatten_summary(summary: dict[str, Any]) -> dict[str, Any]:
+    """The summary's numbers as flat columns: a scalar ``k`` -> ``k``; a mapping of scalars ``k: {a: x}`` ->
+    ``k_a`` (per actuator ``torque_peak_Nm_T1`` ..., per foot ``..._R``); the contact audit's totals with the
+    prefix ``contact_`` (its per-phase breakdown is left to the walk's summary file).  Skipped: the scenario
+    name, engine, completion and reason (columns of their own) and the phase log.  The summary's
+    ``completed`` (every planned phase done) becomes ``all_phases_completed``."""
+    out: dict[str, Any] = {"all_phases_completed": bool(summary["completed"])}
+
+    def put(name: str, v: Any) -> None:
+        if isinstance(v, dict):
+            for sub, x in v.items():
+                if not isinstance(x, (dict, list)):
+                    out[f"{name}_{sub}"] = x
+        elif not isinstance(v, list):
+            out[name] = v
+
+    for k, v in summary.items():
+        if k in _NOT_COLUMNS:
+            continue
+        if k == "contact" and isinstance(v, dict):
+            if "error" in v:
+                out["contact_error"] = v["error"]
+                continue
+            for ck, cv in v.items():
+                if ck != "per_phase":
+                    put(f"contact_{ck}", cv)
+            continue
+        put(k, v)
+    return out
+
+
+def walk_row(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, Any]:
+    """The Dask task of one walk: ``{"row": columns, "summary": summary or None}``, or ``{"interrupted": True}``
+    when the walk was stopped by a KeyboardInterrupt (not a result: the runner does not record it).
+
+    Row columns: ``completed`` (the walk reached its end, every planned phase or the scenario's
+    ``simulation.t_end_s``, without failing), ``failure_kind`` (None, "simulation" = the simulator stopped the
+    walk: divergence, fall, overtime, singular system; "exception" = the walk raised), ``reason`` (the
+    simulator's one-line reason, or the exception), ``failure_time_s`` (simulated time of the failure, s),
+    :func:`flatten_summary`'s columns, ``task_wall_time_s`` (the whole task: scenario, simulator construction,
+    run, summary, audit; s) and ``worker`` (host:pid)."""
+    t0 = time.perf_counter()
+    STATS["walks"] += 1
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    try:
+        summary = run_walk(doc, engine, source)
+    except Exception as exc:  # noqa: BLE001 - any failure of one walk is that walk's row, never the sweep's end
+        row = {"completed": False, "failure_kind": "exception", "reason": f"{type(exc).__name__}: {exc}",
+               "failure_time_s": None, "task_wall_time_s": time.perf_counter() - t0, "worker": worker}
+        return {"row": row, "summary": None}
+    reason = str(summary["reason"])
+    if reason.startswith(INTERRUPTED_PREFIX):
+        return {"interrupted": True}
+    completed = bool(summary["completed"]) or reason.startswith(STOPPED_PREFIX)
+    row = {"completed": completed, "failure_kind": None if completed else "simulation", "reason": reason,
+           "failure_time_s": None if completed else summary["sim_time_s"], **flatten_summary(summary),
+           "task_wall_time_s": time.perf_counter() - t0, "worker": worker}
+    return {"row": row, "summary": summary}
+
+
+# --------------------------------------------------------------------------------------------- worker setup
+def warm_up(engine: str, doc: dict | None) -> None:
+    """Load the model and, for the compiled engine, the kernel (one simulator built on ``doc``, not run).
+    Errors are swallowed: a walk that then fails reports them in its row."""
+    STATS["warm_ups"] += 1
+    try:
+        hm = model()
+        if doc is not None and engine == "pinocchio":
+            from humanoid_sim.scenario import parse_scenario
+
+            _simulator(engine, hm, parse_scenario(doc, "<warm-up>"))
+    except Exception:  # noqa: BLE001
+        pass
+
+
+def worker_stats() -> dict[str, int]:
+    """This process's :data:`STATS` and pid (for ``Client.run``)."""
+    return {**STATS, "pid": os.getpid()}
+
+
+try:  # the plugin base class is only needed where dask is installed (the runner imports this module anyway)
+    from distributed.diagnostics.plugin import WorkerPlugin
+except ImportError:  # pragma: no cover
+    WorkerPlugin = object  # type: ignore[assignment,misc]
+
+
+class WalkSetup(WorkerPlugin):  # type: ignore[misc,valid-type]
+    """Dask worker plugin: :func:`warm_up` when a worker joins (also a worker restarted after a crash), in a
+    thread so that the worker's event loop keeps answering the scheduler meanwhile."""
+
+    name = "humanoid-sweep-setup"
+
+    def __init__(self, engine: str, doc: dict | None) -> None:
+        self.engine = engine
+        self.doc = doc
+
+    async def setup(self, worker: Any) -> None:
+        await asyncio.to_thread(warm_up, self.engine, self.doc)

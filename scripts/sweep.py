@@ -1,0 +1,9 @@
+#!/usr/bin/env python
+"""Run a parameter sweep: ``python scripts/sweep.py SWEEP.yaml [options]`` (see ``--help``)."""
+
+import sys
+
+from humanoid_sim.sweep.cli import main
+
+if __name__ == "__main__":
+    sys.exit(main())
