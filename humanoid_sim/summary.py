@@ -64,19 +64,24 @@ def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, A
     return out
 
 
-def summarize_with_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
-                         phase_names: list[str]) -> dict[str, Any]:
-    """:func:`summarize` plus the contact-feasibility audit (:func:`humanoid_sim.audit.audit_results`) as its
-    ``contact`` section (``{"error": message}`` when the log is inconsistent with the phase contact sets), as
-    ``walk.py`` writes summary.json.  ``scenario``: the :class:`humanoid_sim.scenario.Scenario` run (its name and
-    friction coefficient); ``phase_names``: the run's planned phase names (``[p.name for p in traj.phases]``)."""
+def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[str]) -> tuple[dict[str, Any], Any]:
+    """The ``contact`` section of summary.json and the :class:`humanoid_sim.audit.AuditReport` behind it (None, and
+    ``{"error": message}``, when the log is inconsistent with the phase contact sets)."""
     from humanoid_sim.audit import AuditError, audit_results
 
-    summary = summarize(result, scenario.name, engine)
     try:
         report = audit_results({**result.log.arrays(), "phase_names": np.array(phase_names)}, hm,
                                scenario.contact.friction_coefficient)
-        summary["contact"] = report.summary()
     except AuditError as exc:
-        summary["contact"] = {"error": str(exc)}
+        return {"error": str(exc)}, None
+    return report.summary(), report
+
+
+def summarize_with_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
+                         phase_names: list[str]) -> dict[str, Any]:
+    """:func:`summarize` plus the contact-feasibility audit (:func:`contact_audit`) as its ``contact`` section, as
+    ``walk.py`` writes summary.json.  ``scenario``: the :class:`humanoid_sim.scenario.Scenario` run (its name and
+    friction coefficient); ``phase_names``: the run's planned phase names (``[p.name for p in traj.phases]``)."""
+    summary = summarize(result, scenario.name, engine)
+    summary["contact"] = contact_audit(result, scenario, hm, phase_names)[0]
     return summary

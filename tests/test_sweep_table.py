@@ -193,13 +193,13 @@ def test_the_thesis_engine_runs_the_walk(hm):
     directly."""
     from humanoid_sim.scenario import parse_scenario
     from humanoid_sim.summary import summarize_with_audit
-    from humanoid_sim.thesis.walk import ThesisSimulator
+    from humanoid_sim.simulate import Simulator
 
     doc = copy.deepcopy(SIM3)
     doc["simulation"]["t_end_s"] = 0.02
     s = run_walk(doc, "thesis")
     sc = parse_scenario(doc)
-    sim = ThesisSimulator(hm, sc)
+    sim = Simulator(hm, sc, engine="thesis")
     res = sim.run()
     direct = summarize_with_audit(res, sc, "thesis", hm, [p.name for p in sim.traj.phases])
     assert s["engine"] == "thesis" and s["steps"] == 2 and "compiled_stages" not in s

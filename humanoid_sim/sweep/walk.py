@@ -21,8 +21,7 @@ from typing import Any
 
 import numpy as np
 
-ENGINE_NAMES: tuple[str, ...] = ("pinocchio", "thesis")
-"""Engines ``humanoid-sweep --engine`` accepts, in the order the help lists them (the one list to extend)."""
+from humanoid_sim.engines import ENGINE_NAMES  # the one list of engines (humanoid-sweep --engine)
 
 STATS: dict[str, int] = {"model_loads": 0, "walks": 0, "warm_ups": 0}
 """Per-process counters: model loads, walks run (:func:`walk_row` calls), worker warm-ups."""
@@ -46,15 +45,12 @@ def model() -> Any:
 
 
 def _simulator(engine: str, hm: Any, sc: Any) -> Any:
-    if engine == "pinocchio":
-        from humanoid_sim.simulate import Simulator
+    """The walk's simulator on ``engine`` (scenario + engine + controller + the stepping loop)."""
+    if engine not in ENGINE_NAMES:
+        raise ValueError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
+    from humanoid_sim.simulate import Simulator
 
-        return Simulator(hm, sc)
-    if engine == "thesis":
-        from humanoid_sim.thesis.walk import ThesisSimulator
-
-        return ThesisSimulator(hm, sc)
-    raise ValueError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
+    return Simulator(hm, sc, engine=engine)
 
 
 def torque_rms(T: np.ndarray) -> np.ndarray:
