@@ -7,10 +7,13 @@ needs).  World frame (x lateral, y forward, z up), SI units.
 """
 
 from .errors import GaitError
+from .multibody import HipCorrection, correct_hip, manifold_derivatives, match_com, multibody_zmp, whole_body_com
+from .posture import WalkPosture, thesis_free_toes
 from .preview import CartTablePreview, PreviewResult
 from .zmp_reference import SupportInterval, intervals_from_trajectory, sample, sole_centre, toe_part_centre
 
 __all__ = [
-    "CartTablePreview", "GaitError", "PreviewResult", "SupportInterval", "intervals_from_trajectory", "sample",
-    "sole_centre", "toe_part_centre",
+    "CartTablePreview", "GaitError", "HipCorrection", "PreviewResult", "SupportInterval", "WalkPosture",
+    "correct_hip", "intervals_from_trajectory", "manifold_derivatives", "match_com", "multibody_zmp", "sample",
+    "sole_centre", "thesis_free_toes", "toe_part_centre", "whole_body_com",
 ]
