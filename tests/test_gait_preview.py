@@ -157,7 +157,8 @@ def test_tracks_the_walk_reference_within_10_mm_in_single_support_at_1_6_s(ctrl)
     res = ctrl.run(ref)
     err = res.zmp_error
     assert err[ss].max() < 0.010   # the acceptance bound
-    assert 0.04 < np.ptp(res.com[:, 0]) / 2 < 0.12   # the CoM sways sideways (design.md: ~+-60 mm with z_c 0.8)
+    # the CoM sways sideways, less than the feet's +-0.1 m (measured +-81 mm; design.md noted ~+-60 mm)
+    assert 0.04 < np.ptp(res.com[:, 0]) / 2 < 0.1
 
 
 def test_tracking_error_grows_as_the_horizon_shrinks():
