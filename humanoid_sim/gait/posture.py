@@ -18,12 +18,12 @@ to configurations q (N, nq):
   the single support, so its needed angle is already > 0 when the toe is freed; during the ramp the heel lags the
   need and the leg uses part of its last 0.5 % of length.  The thesis walk needs the heel rise: neither its own
   hip reference nor a preview plan reaches the trailing foot flat late in the double support and early in the
-  swing (sim 3: the leg up to ~0.2 m short);
+  swing (sim 3: with both toe joints locked the inverse kinematics of the thesis's own hip reference fails there);
 - each leg (hip yaw, roll, pitch, knee, ankle roll, yaw, pitch: 7 joints for the 6 targets of its foot) takes,
   among the configurations that meet the targets, the one closest to the seed's leg angles: Gauss-Newton on that
   constrained least-distance problem, warm-started from the previous call's solution at the same sample, else from
-  the previous sample.  The posture is a function of the targets alone, not of the iteration's path, which the
-  fixed point of ``match_com`` needs;
+  the previous sample.  The postures are a function of the targets (of the whole path, through the heel
+  smoothing), not of the iteration's history, which the fixed point of ``match_com`` needs;
 - the upper body keeps the seed's angles (normally 0, the thesis posture).
 """
 
