@@ -37,7 +37,7 @@ import numpy as np
 
 from humanoid_sim.command import CommandError
 from humanoid_sim.contact import ContactError
-from humanoid_sim.controllers.base import Command, ControlContext, Controller, ControllerError, Observation, as_command
+from humanoid_sim.controllers.base import Command, Controller, ControllerError, Observation, as_command
 from humanoid_sim.engines.base import Engine
 from humanoid_sim.phases import Phase, SwitchThresholds
 from humanoid_sim.results import SimLog
@@ -178,4 +178,4 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
                      extra=extra)
 
 
-__all__ = ["RUN_ERRORS", "SimResult", "run", "thresholds_of", "ControlContext"]
+__all__ = ["RUN_ERRORS", "SimResult", "run", "thresholds_of"]

@@ -61,7 +61,6 @@ from __future__ import annotations
 
 import ctypes
 import importlib
-import time
 from contextlib import contextmanager
 from typing import Callable, Iterator
 
