@@ -239,8 +239,8 @@ def build_model(hm: HumanoidModel, settings: MujocoSettings | None = None) -> Mu
         if j.type == mujoco.mjtJoint.mjJNT_HINGE:
             j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
             j.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
-            j.damping = [0.0, 0.0, 0.0]
-            j.stiffness = [0.0, 0.0, 0.0]
+            for attr in ("damping", "stiffness"):  # scalars before MuJoCo 4, (3,) polynomials since
+                setattr(j, attr, np.zeros_like(getattr(j, attr)) if np.ndim(getattr(j, attr)) else 0.0)
             j.armature = 0.0
             j.frictionloss = 0.0
 
