@@ -167,3 +167,27 @@ def test_slip_meter_and_tilt(hm: HumanoidModel, q0: np.ndarray) -> None:
     sim.set_state(q, np.zeros(hm.model.nv))
     for f in "RL":
         assert sole_tilt(sim.mm, sim.data, f) == pytest.approx(0.02, abs=1e-12)
+
+
+def test_sole_cop_names_the_edge(hm: HumanoidModel, q0: np.ndarray) -> None:
+    """The robot rolled by 0.03 rad about the right sole's outer edge (world x = 0.205 m), sunk 0.1 mm: only that
+    edge touches, and the CoP lies on it.  Flat on both feet, the CoP is inside, away from every edge."""
+    from humanoid_sim.mujoco.contact import sole_cop
+
+    sim = MujocoSim(hm)
+    pivot = np.array([0.16 + 0.045, 0.0, 0.0])
+    R = pin.rpy.rpyToMatrix(0.0, 0.03, 0.0)
+    M = pin.SE3(R, pivot - R @ pivot + [0.0, 0.0, -1e-4]) * pin.XYZQUATToSE3(q0[:7])
+    q = q0.copy()
+    q[:7] = pin.SE3ToXYZQUAT(M)
+    sim.set_state(q, np.zeros(hm.model.nv))
+    fw = sim.foot_wrenches()
+    assert fw["L"].normal == 0.0 and sole_cop(sim.mm, sim.data, fw["L"]) is None
+    np.testing.assert_allclose(fw["R"].points[:, 0], 0.205, atol=1e-6)  # all on the edge line (1 um: the sink)
+    cop = sole_cop(sim.mm, sim.data, fw["R"])
+    assert cop.edges == ("outer",) and abs(cop.margin) < 1e-4 and cop.xy[1] == pytest.approx(-0.045, abs=1e-4)
+    sim.set_state(q0, np.zeros(hm.model.nv))
+    sim.step(np.zeros(hm.model.nv), 0.002)
+    for foot in "RL":
+        cop = sole_cop(sim.mm, sim.data, sim.foot_wrenches()[foot])
+        assert cop.edges == () and cop.margin > 0.01

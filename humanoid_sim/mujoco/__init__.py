@@ -13,8 +13,9 @@
 
 from humanoid_sim.mujoco.model import MujocoModel, MujocoModelError, MujocoSettings, build_model
 from humanoid_sim.mujoco.state import StateMap
-from humanoid_sim.mujoco.contact import FootContact, SlipMeter, foot_contacts, sole_corners, sole_tilt
+from humanoid_sim.mujoco.contact import (FootContact, SlipMeter, SoleCop, foot_contacts, sole_cop, sole_corners,
+                                         sole_tilt)
 from humanoid_sim.mujoco.sim import MujocoSim, MujocoSimError
 
 __all__ = ["MujocoModel", "MujocoModelError", "MujocoSettings", "build_model", "StateMap", "FootContact",
-           "SlipMeter", "foot_contacts", "sole_corners", "sole_tilt", "MujocoSim", "MujocoSimError"]
+           "SlipMeter", "SoleCop", "foot_contacts", "sole_cop", "sole_corners", "sole_tilt", "MujocoSim", "MujocoSimError"]

@@ -151,3 +151,44 @@ class SlipMeter:
         self.current[foot] = s
         self.max_slip[foot] = max(self.max_slip[foot], s)
         return s
+
+
+EDGES = ("toe", "heel", "outer", "inner")
+
+
+@dataclass
+class SoleCop:
+    """Where a foot's CoP lies on its sole.
+
+    ``xy`` (2,): CoP in the foot main-body frame (x forward from the ankle, y to the foot's left), m, projected
+    along the body's z axis; ``margin``: signed distance from the CoP to the sole rectangle's boundary (m,
+    positive inside); ``edges``: the sole edges ("toe", "heel", "outer", "inner") within ``edge_tol`` of the CoP
+    (empty when the CoP is well inside).  The sole is the flat rectangle heel to toe tip (the toe box counted
+    flat: its joint bends little while the foot supports).
+    """
+
+    xy: np.ndarray
+    margin: float
+    edges: tuple[str, ...]
+
+
+def sole_cop(mm: MujocoModel, data: mujoco.MjData, contact: FootContact, edge_tol: float = 2e-3) -> SoleCop | None:
+    """The foot's CoP in its sole (None when the foot carries no normal force)."""
+    from humanoid_sim.audit import signed_distance
+
+    if not contact.force[2] > 0:
+        return None
+    sole = mm.sole_geometry
+    body = mm.foot_bodies[contact.foot][1]
+    R = data.xmat[body].reshape(3, 3)
+    # O_3 / O_4 is the main body's link frame (build_model checks it).
+    xy = (R.T @ (contact.cop - data.xpos[body]))[:2]
+    rect = sole.flat_corners()[:, :2]
+    margin = signed_distance(xy, rect)
+    w = sole.width / 2
+    near = {"toe": sole.toe_front_x - xy[0], "heel": xy[0] - sole.heel_back_x}
+    # The right foot's outer side is its right (-y), the left foot's its left (+y).
+    outer_sign = -1.0 if contact.foot == "R" else 1.0
+    near["outer"] = w - outer_sign * xy[1]
+    near["inner"] = w + outer_sign * xy[1]
+    return SoleCop(xy=xy, margin=margin, edges=tuple(e for e in EDGES if near[e] <= edge_tol))

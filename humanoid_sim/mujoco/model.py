@@ -195,10 +195,11 @@ def _sole_box(hm: HumanoidModel, boxes: dict, body: int, corners: np.ndarray) ->
     if np.any(np.abs(rpy) > 1e-12):
         raise MujocoModelError(f"{hm.urdf_path}: sole box of link {link!r} is rotated (rpy {rpy.tolist()}); "
                                "expected an axis-aligned box")
-    # Sole rectangle (given in O_body) expressed in the link frame.
-    if not np.allclose(M.rotation, np.eye(3), atol=1e-12):
-        raise MujocoModelError(f"{hm.urdf_path}: frame O_{body} is rotated in link {link!r}; expected aligned")
-    c = corners + M.translation
+    # The sole rectangle is given in O_body; the leg links sit at their thesis frames (model YAML ``joint_at``).
+    if not M.isIdentity(1e-12):
+        raise MujocoModelError(f"{hm.urdf_path}: frame O_{body} is not at the origin of link {link!r}; expected "
+                               "the foot links at their thesis frames")
+    c = corners
     lo, hi = centre - size / 2, centre + size / 2
     bottom = np.array([[lo[0], lo[1], lo[2]], [hi[0], lo[1], lo[2]], [hi[0], hi[1], lo[2]], [lo[0], hi[1], lo[2]]])
     # 1e-9 m: both come from the same YAML numbers through float printing in the URDF (~1e-12).
