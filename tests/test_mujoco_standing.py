@@ -47,7 +47,8 @@ def test_gravity_compensation_is_static_equilibrium(hm: HumanoidModel, q0: np.nd
     model, data = hm.model, hm.model.createData()
     pin.computeJointJacobians(model, data, q0)
     pin.updateFramePlacements(model, data)
-    Jc = np.vstack([pin.getFrameJacobian(model, data, hm.frame_id(f), pin.ReferenceFrame.LOCAL) for f in ("O_3", "O_4")])
+    Jc = np.vstack([pin.getFrameJacobian(model, data, hm.frame_id(f), pin.ReferenceFrame.LOCAL)
+                    for f in ("O_3", "O_4")])
     g = pin.rnea(model, data, q0, np.zeros(model.nv), np.zeros(model.nv))
     # 1e-9 N (m): a least-squares solve and products on forces of ~500 N.
     np.testing.assert_allclose(c.tau_g + Jc.T @ c.foot_wrenches_ref, g, atol=1e-9)

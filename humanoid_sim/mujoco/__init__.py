@@ -18,4 +18,5 @@ from humanoid_sim.mujoco.contact import (FootContact, SlipMeter, SoleCop, foot_c
 from humanoid_sim.mujoco.sim import MujocoSim, MujocoSimError
 
 __all__ = ["MujocoModel", "MujocoModelError", "MujocoSettings", "build_model", "StateMap", "FootContact",
-           "SlipMeter", "SoleCop", "foot_contacts", "sole_cop", "sole_corners", "sole_tilt", "MujocoSim", "MujocoSimError"]
+           "SlipMeter", "SoleCop", "foot_contacts", "sole_cop", "sole_corners", "sole_tilt", "MujocoSim",
+           "MujocoSimError"]

@@ -154,7 +154,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"standing {r.duration:.1f} s: fell {r.fell}; hip drift max {r.hip_drift_max * 1e3:.2f} mm "
               f"(final {np.round(r.hip_final * 1e3, 2).tolist()} mm); slip R {r.slip_max['R'] * 1e3:.4f} mm, "
               f"L {r.slip_max['L'] * 1e3:.4f} mm; tilt max {np.degrees(max(r.tilt_max.values())):.3f} deg; "
-              f"penetration max {r.penetration_max * 1e3:.3f} mm; ground force {np.round(r.force_final, 2).tolist()} N; "
+              f"penetration max {r.penetration_max * 1e3:.3f} mm; "
+              f"ground force {np.round(r.force_final, 2).tolist()} N; "
               f"wall {r.wall_s:.2f} s")
     if what in ("contact", "all"):
         print("contact settings: sole slip under a 20 N push (0.5-2 s), penetration and hip drift standing 2 s")

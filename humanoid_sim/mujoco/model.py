@@ -14,7 +14,8 @@ What is added to the URDF (which has inertias and visual boxes only, design.md s
 - 26 motor actuators (gear 1, one per revolute joint, named after the joint, in MuJoCo's dof order) with no
   control or force range: the controller and the project's actuator model clip torques, not MuJoCo.  The URDF's
   +-pi joint limits and 150 N m effort are dropped (Pinocchio ignores them too);
-- the 14 virtual (massless) bodies get MuJoCo's bound mass / inertia 1e-13 (it refuses massless moving bodies);
+- the 14 virtual (massless) bodies get MuJoCo's lower bound on mass and inertia (``boundmass`` /
+  ``boundinertia`` 1e-13; the compiled masses are 2e-13 kg): MuJoCo refuses massless moving bodies;
   no joint damping, armature or friction loss (the thesis model has none: the rigid-body dynamics are the
   thesis's, and tests compare the mass matrix and bias forces with Pinocchio's).
 
@@ -179,8 +180,9 @@ def _urdf_boxes(urdf_path: Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.n
             if box is None:
                 continue
             origin = vis.find("origin")
-            xyz = np.array([float(x) for x in origin.get("xyz", "0 0 0").split()]) if origin is not None else np.zeros(3)
-            rpy = np.array([float(x) for x in origin.get("rpy", "0 0 0").split()]) if origin is not None else np.zeros(3)
+            attrs = origin.attrib if origin is not None else {}
+            xyz = np.array([float(x) for x in attrs.get("xyz", "0 0 0").split()])
+            rpy = np.array([float(x) for x in attrs.get("rpy", "0 0 0").split()])
             out[link.get("name")] = (xyz, rpy, np.array([float(x) for x in box.get("size").split()]))
     return out
 

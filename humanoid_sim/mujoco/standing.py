@@ -25,6 +25,7 @@ balance controller.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -117,8 +118,6 @@ def run_standing(sim: MujocoSim, q0: np.ndarray, duration: float = 5.0, control_
     """Hold ``q0`` (v = 0 at the start) for ``duration`` s; the controller runs every ``control_period``
     (default: every MuJoCo step) with its torques held in between.  Measures are sampled every
     ``sample_every`` control periods and at the end."""
-    import time as _time
-
     hm = sim.hm
     model, data = hm.model, hm.model.createData()
     h = sim.timestep if control_period is None else float(control_period)
@@ -133,7 +132,7 @@ def run_standing(sim: MujocoSim, q0: np.ndarray, duration: float = 5.0, control_
     tilt = {f: 0.0 for f in "RL"}
     pen, drift, fell = 0.0, 0.0, False
     hist: dict[str, list] = {"t": [], "hip": []}
-    t0 = _time.perf_counter()
+    t0 = time.perf_counter()
     for k in range(n):
         q, v = sim.state()
         sim.step(ctrl(q, v), h)
@@ -153,7 +152,7 @@ def run_standing(sim: MujocoSim, q0: np.ndarray, duration: float = 5.0, control_
             if data.oMf[fid].translation[2] < fall_height:
                 fell = True
                 break
-    wall = _time.perf_counter() - t0
+    wall = time.perf_counter() - t0
     fw = sim.foot_wrenches()
     return StandingResult(duration=sim.time, fell=fell, hip_drift_max=drift, hip_final=hist["hip"][-1],
                           slip_max=dict(slip.max_slip), tilt_max=tilt, penetration_max=pen,
