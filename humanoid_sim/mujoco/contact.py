@@ -1,0 +1,194 @@
+"""Ground reactions of the feet from MuJoCo's contact forces, and slip / tilt / penetration measures.
+
+Every active contact of a sole geom (toe body 1 / 2, main body 3 / 4) with the floor is read with
+``mujoco.mj_contactForce``, which returns the force (and, for condim > 3, the torque) in the contact frame
+``contact.frame`` (rows: normal, first tangent, second tangent; the normal points from geom1 to geom2).  That force
+acts on geom2's body, its negative on geom1's; here it is turned into the force on the foot, in the world frame
+(thesis frame 0, z up), applied at ``contact.pos``.
+
+Per foot, :class:`FootContact` gives the resultant force (N), its moment about the world origin (N m), the centre
+of pressure on the ground plane z = 0 (m), the normal force of each sole geom (N), the contact points and their
+normal forces, and the deepest penetration (m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from humanoid_sim.mujoco.model import FEET, MujocoModel
+
+_EMPTY3 = np.zeros((0, 3))
+
+
+@dataclass
+class FootContact:
+    """Ground reaction on one foot (world frame, SI units).
+
+    ``force`` (3,) N and ``moment`` (3,) N m about the world origin: the resultant wrench the ground applies to
+    the foot (toe and main body together).  ``cop`` (3,): centre of pressure on the plane z = 0 (NaN when the
+    normal force is zero).  ``normal_toe`` / ``normal_main``: normal force (N) on the toe box and the main-body
+    box.  ``points`` (k, 3) contact points, ``point_normal`` (k,) their normal forces (N), ``point_geom`` (k,)
+    which geom (0 toe, 1 main body).  ``penetration`` (m, >= 0): deepest penetration of a sole box.
+    """
+
+    foot: str
+    force: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    moment: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    normal_toe: float = 0.0
+    normal_main: float = 0.0
+    points: np.ndarray = field(default_factory=lambda: _EMPTY3.copy())
+    point_normal: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    point_geom: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    penetration: float = 0.0
+
+    @property
+    def normal(self) -> float:
+        """Total normal force on the sole, N."""
+        return self.normal_toe + self.normal_main
+
+    @property
+    def cop(self) -> np.ndarray:
+        """Centre of pressure on z = 0: the point where the moment's horizontal part vanishes, m."""
+        fz = self.force[2]
+        if not fz > 0:
+            return np.full(3, np.nan)
+        return np.array([-self.moment[1] / fz, self.moment[0] / fz, 0.0])
+
+    @property
+    def wrench(self) -> np.ndarray:
+        """(6,) [force; moment about the world origin]."""
+        return np.concatenate([self.force, self.moment])
+
+
+def foot_contacts(mm: MujocoModel, data: mujoco.MjData) -> dict[str, FootContact]:
+    """Ground reaction of each foot at the current ``data`` (after ``mj_forward`` or ``mj_step``)."""
+    out = {foot: FootContact(foot) for foot in FEET}
+    ncon = data.ncon
+    if ncon == 0:
+        return out
+    geom_foot = mm.geom_foot()
+    toe_geoms = {mm.sole_geoms[f][0] for f in FEET}
+    contacts = data.contact
+    geoms = np.asarray(contacts.geom[:ncon])
+    frames = np.asarray(contacts.frame[:ncon]).reshape(ncon, 3, 3)
+    pos = np.asarray(contacts.pos[:ncon])
+    dist = np.asarray(contacts.dist[:ncon])
+    f6 = np.zeros(6)
+    rows: dict[str, list] = {foot: [] for foot in FEET}
+    for i in range(ncon):
+        g1, g2 = int(geoms[i, 0]), int(geoms[i, 1])
+        if g2 in geom_foot and g1 == mm.floor_geom:
+            geom, sign = g2, 1.0
+        elif g1 in geom_foot and g2 == mm.floor_geom:
+            geom, sign = g1, -1.0
+        else:
+            continue  # not a sole-floor contact (the model has none, by its contype/conaffinity)
+        mujoco.mj_contactForce(mm.model, data, i, f6)
+        fw = sign * (frames[i].T @ f6[:3])    # force on the foot, world frame
+        tw = sign * (frames[i].T @ f6[3:])    # contact torque on the foot (zero for condim 3)
+        rows[geom_foot[geom]].append((pos[i].copy(), fw, tw, f6[0], 0 if geom in toe_geoms else 1, -dist[i]))
+    for foot, lst in rows.items():
+        if not lst:
+            continue
+        c = out[foot]
+        P = np.array([r[0] for r in lst])
+        F = np.array([r[1] for r in lst])
+        T = np.array([r[2] for r in lst])
+        c.force = F.sum(axis=0)
+        c.moment = np.cross(P, F).sum(axis=0) + T.sum(axis=0)
+        c.points = P
+        c.point_normal = np.array([r[3] for r in lst])
+        c.point_geom = np.array([r[4] for r in lst], dtype=int)
+        c.normal_toe = float(c.point_normal[c.point_geom == 0].sum())
+        c.normal_main = float(c.point_normal[c.point_geom == 1].sum())
+        c.penetration = max(0.0, float(max(r[5] for r in lst)))
+    return out
+
+
+# ---------------------------------------------------------------------------------------- sole measures
+def sole_corners(mm: MujocoModel, data: mujoco.MjData, foot: str) -> np.ndarray:
+    """(4, 3) world positions of the bottom corners of the foot's main-body sole box, m (after kinematics)."""
+    g = mm.sole_geoms[foot][1]
+    half = mm.model.geom_size[g]
+    local = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1]], dtype=float) * half
+    R = data.geom_xmat[g].reshape(3, 3)
+    return data.geom_xpos[g] + local @ R.T
+
+
+def sole_tilt(mm: MujocoModel, data: mujoco.MjData, foot: str) -> float:
+    """Angle (rad) between the foot main body's sole normal (its z axis) and the world z axis."""
+    R = data.xmat[mm.foot_bodies[foot][1]].reshape(3, 3)
+    return float(np.arctan2(np.hypot(R[0, 2], R[1, 2]), R[2, 2]))  # well conditioned near 0, unlike arccos
+
+
+class SlipMeter:
+    """Horizontal travel of each sole while it supports.
+
+    ``update(foot, supporting, corners)`` with the main-body sole corners (:func:`sole_corners`): when a foot
+    starts supporting, its corners are recorded; while it supports, its slip is the largest horizontal distance
+    of a corner from its recorded position (m), so a rotation about the vertical counts as well as a slide.
+    ``max_slip[foot]`` is the largest slip over all its supports; ``current[foot]`` that of the present support.
+    """
+
+    def __init__(self) -> None:
+        self._anchor: dict[str, np.ndarray | None] = {foot: None for foot in FEET}
+        self.current = {foot: 0.0 for foot in FEET}
+        self.max_slip = {foot: 0.0 for foot in FEET}
+
+    def update(self, foot: str, supporting: bool, corners: np.ndarray) -> float:
+        if not supporting:
+            self._anchor[foot] = None
+            self.current[foot] = 0.0
+            return 0.0
+        anchor = self._anchor[foot]
+        if anchor is None:
+            self._anchor[foot] = np.array(corners[:, :2], dtype=float)
+            return 0.0
+        s = float(np.max(np.linalg.norm(corners[:, :2] - anchor, axis=1)))
+        self.current[foot] = s
+        self.max_slip[foot] = max(self.max_slip[foot], s)
+        return s
+
+
+EDGES = ("toe", "heel", "outer", "inner")
+
+
+@dataclass
+class SoleCop:
+    """Where a foot's CoP lies on its sole.
+
+    ``xy`` (2,): CoP in the foot main-body frame (x forward from the ankle, y to the foot's left), m, projected
+    along the body's z axis; ``margin``: signed distance from the CoP to the sole rectangle's boundary (m,
+    positive inside); ``edges``: the sole edges ("toe", "heel", "outer", "inner") within ``edge_tol`` of the CoP
+    (empty when the CoP is well inside).  The sole is the flat rectangle heel to toe tip (the toe box counted
+    flat: its joint bends little while the foot supports).
+    """
+
+    xy: np.ndarray
+    margin: float
+    edges: tuple[str, ...]
+
+
+def sole_cop(mm: MujocoModel, data: mujoco.MjData, contact: FootContact, edge_tol: float = 2e-3) -> SoleCop | None:
+    """The foot's CoP in its sole (None when the foot carries no normal force)."""
+    from humanoid_sim.audit import signed_distance
+
+    if not contact.force[2] > 0:
+        return None
+    sole = mm.sole_geometry
+    body = mm.foot_bodies[contact.foot][1]
+    R = data.xmat[body].reshape(3, 3)
+    # O_3 / O_4 is the main body's link frame (build_model checks it).
+    xy = (R.T @ (contact.cop - data.xpos[body]))[:2]
+    rect = sole.flat_corners()[:, :2]
+    margin = signed_distance(xy, rect)
+    w = sole.width / 2
+    near = {"toe": sole.toe_front_x - xy[0], "heel": xy[0] - sole.heel_back_x}
+    # The right foot's outer side is its right (-y), the left foot's its left (+y).
+    outer_sign = -1.0 if contact.foot == "R" else 1.0
+    near["outer"] = w - outer_sign * xy[1]
+    near["inner"] = w + outer_sign * xy[1]
+    return SoleCop(xy=xy, margin=margin, edges=tuple(e for e in EDGES if near[e] <= edge_tol))

@@ -1,0 +1,121 @@
+"""MuJoCo as an engine: state in Pinocchio's convention, torques held over a control period (zero-order hold).
+
+::
+
+    sim = MujocoSim(hm)                     # or MujocoSim(hm, MujocoSettings.from_scenario(scenario))
+    sim.set_state(q, v)                     # Pinocchio q (nq = 33, quaternion xyzw), v (base twist LOCAL)
+    sim.step(tau, 0.01)                     # tau (nv,) generalized forces in Pinocchio v order, held 10 ms
+    q, v = sim.state()
+    wrenches = sim.foot_wrenches()          # {'R': FootContact, 'L': FootContact}, world frame
+
+``step`` writes the joint rows of tau to the 26 motors (the base rows are ignored: nothing actuates the base)
+and advances ``round(h / timestep)`` MuJoCo steps with them unchanged.  MuJoCo resolves impacts and contact
+switching inside its steps; there is no velocity reset.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from humanoid_sim.model import HumanoidModel
+from humanoid_sim.mujoco.contact import FootContact, foot_contacts
+from humanoid_sim.mujoco.model import MujocoModel, MujocoSettings, build_model
+from humanoid_sim.mujoco.state import StateMap
+
+
+_BAD = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS,
+        mujoco.mjtWarning.mjWARN_BADCTRL)
+
+
+class MujocoSimError(RuntimeError):
+    """A MuJoCo step failed (non-finite acceleration: MuJoCo would silently reset the state) or a bad argument."""
+
+
+class MujocoSim:
+    """The thesis humanoid in MuJoCo, driven by joint torques (see the module docstring)."""
+
+    def __init__(self, hm: HumanoidModel, settings: MujocoSettings | None = None) -> None:
+        self.hm = hm
+        self.mm: MujocoModel = build_model(hm, settings)
+        self.model = self.mm.model
+        self.data = mujoco.MjData(self.model)
+        self.map = StateMap.from_models(hm, self.model)
+        self.timestep = float(self.model.opt.timestep)
+        self._fresh = False
+        self.set_state(hm.initial_q(), np.zeros(hm.model.nv))
+
+    # ------------------------------------------------------------------ state
+    @property
+    def time(self) -> float:
+        """Simulated time, s."""
+        return float(self.data.time)
+
+    @time.setter
+    def time(self, t: float) -> None:
+        self.data.time = float(t)
+
+    def set_state(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Set the state from Pinocchio's q (nq,) and v (nv,); controls are zeroed, time unchanged."""
+        self.data.qpos[:] = self.map.qpos_from_q(q)
+        self.data.qvel[:] = self.map.qvel_from_v(q, v)
+        self.data.ctrl[:] = 0.0
+        self.data.qacc_warmstart[:] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+        self._fresh = True
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) in Pinocchio's convention (copies)."""
+        qpos = self.data.qpos.copy()
+        return self.map.q_from_qpos(qpos), self.map.v_from_qvel(qpos, self.data.qvel)
+
+    # ------------------------------------------------------------------ stepping
+    def substeps(self, h: float) -> int:
+        """Number of MuJoCo steps in a control period h (s); h must be a whole number of timesteps."""
+        n = round(h / self.timestep)
+        if not (math.isfinite(h) and n >= 1 and abs(n * self.timestep - h) <= 1e-9 * max(1.0, h)):
+            raise MujocoSimError(f"step duration h = {h!r} s: expected a positive multiple of the MuJoCo "
+                                 f"timestep {self.timestep:g} s")
+        return n
+
+    def step(self, tau: np.ndarray, h: float) -> None:
+        """Advance h seconds with the joint rows of ``tau`` (Pinocchio v order, N m) held on the motors.
+
+        Raises :class:`MujocoSimError` if MuJoCo flags a non-finite or huge state, acceleration or control (it
+        would otherwise reset the data or zero the control silently); the state is then restored to the start
+        of the step."""
+        n = self.substeps(h)
+        ctrl = self.map.ctrl_from_tau(tau)
+        if not np.all(np.isfinite(ctrl)):
+            raise MujocoSimError(f"tau has non-finite joint torques at t = {self.time:.4f} s")
+        self.data.ctrl[:] = ctrl
+        m, d = self.model, self.data
+        before = [d.warning[w].number for w in _BAD]
+        t_start, qpos, qvel = d.time, d.qpos.copy(), d.qvel.copy()
+        t_end = d.time + n * self.timestep
+        for _ in range(n):
+            mujoco.mj_step(m, d)
+        # MuJoCo answers a non-finite or huge qpos/qvel/qacc with a warning and a reset of the data (time back to
+        # 0), and a huge control with a warning and ctrl = 0: either way the run is no longer the one asked for.
+        hit = [w.name for w, b in zip(_BAD, before) if d.warning[w].number != b]
+        if hit or abs(d.time - t_end) > 1e-6 or not np.all(np.isfinite(d.qvel)):
+            d.time, d.qpos[:], d.qvel[:] = t_start, qpos, qvel  # keep the last good state for the caller
+            self._fresh = False
+            raise MujocoSimError(f"MuJoCo: {', '.join(hit) or 'non-finite state'} in the step from "
+                                 f"t = {t_start:.4f} s (the state diverged or a torque was huge); the state is "
+                                 "left at the start of the step")
+        self._fresh = False
+
+    def forward(self) -> None:
+        """Bring MuJoCo's derived quantities (kinematics, contacts, contact forces) to the current state."""
+        if not self._fresh:
+            mujoco.mj_forward(self.model, self.data)
+            self._fresh = True
+
+    # ------------------------------------------------------------------ outputs
+    def foot_wrenches(self) -> dict[str, FootContact]:
+        """Ground reaction of each foot at the current state (see :mod:`humanoid_sim.mujoco.contact`)."""
+        self.forward()
+        return foot_contacts(self.mm, self.data)
