@@ -182,7 +182,8 @@ CONTROLLER_SCHEMA = _controller_schema()
 
 
 # --------------------------------------------------------------------------------------------- helpers
-def _suggest(key: str, allowed: Sequence[str]) -> str:
+def suggest_key(key: str, allowed: Sequence[str]) -> str:
+    """'; did you mean ...?' for a misspelt key, else the allowed keys (message tail)."""
     close = difflib.get_close_matches(key, list(allowed), n=1, cutoff=0.5)
     if close:
         return f"; did you mean {close[0]!r}?"
@@ -200,7 +201,7 @@ def _mapping(src: str, where: str, value: Any) -> dict:
 def _check_keys(src: str, where: str, d: dict, allowed: Sequence[str]) -> None:
     for k in d:
         if not isinstance(k, str) or k not in allowed:
-            raise ScenarioError(f"{src}: {where + '.' if where else ''}{k}: unknown key{_suggest(str(k), allowed)}")
+            raise ScenarioError(f"{src}: {where + '.' if where else ''}{k}: unknown key{suggest_key(str(k), allowed)}")
 
 
 def _show(value: Any, limit: int = 80) -> str:
@@ -413,24 +414,29 @@ def _construct_mapping(loader: _StrictSafeLoader, node: yaml.MappingNode, deep: 
 _StrictSafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file (raises :class:`ScenarioError`)."""
+def read_yaml(path: str | Path, what: str = "scenario file", error: type[Exception] = ScenarioError) -> Any:
+    """The YAML document of a file, read strictly (plain data only, no duplicate keys); ``what`` names the file
+    in messages, ``error`` is raised for a missing, unreadable or invalid file."""
     p = Path(path)
     if not p.exists():
-        raise ScenarioError(f"{p}: no such scenario file")
+        raise error(f"{p}: no such {what}")
     if not p.is_file():
-        raise ScenarioError(f"{p}: not a regular file")
+        raise error(f"{p}: not a regular file")
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{p}: cannot read as UTF-8 text: {exc}") from None
+        raise error(f"{p}: cannot read as UTF-8 text: {exc}") from None
     try:
-        doc = yaml.load(text, Loader=_StrictSafeLoader)  # noqa: S506 (a SafeLoader subclass)
+        return yaml.load(text, Loader=_StrictSafeLoader)  # noqa: S506 (a SafeLoader subclass)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc)
         if isinstance(exc, yaml.constructor.ConstructorError) and "constructor for the tag" in problem:
             problem += " (only plain YAML data is accepted; tags that construct objects are refused)"
-        raise ScenarioError(f"{p}: not valid YAML{where}: {problem}") from None
-    return parse_scenario(doc, str(p))
+        raise error(f"{p}: not valid YAML{where}: {problem}") from None
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file (raises :class:`ScenarioError`)."""
+    return parse_scenario(read_yaml(path), str(Path(path)))

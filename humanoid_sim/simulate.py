@@ -48,7 +48,7 @@ class Simulator:
         self.model = hm.model
         self.traj = ReferenceTrajectory(scenario.path)
         self.q0 = initial_configuration(hm, scenario.path)
-        self.engine = make_engine(engine, hm, scenario, self.traj, compiled=None if compiled is None else compiled)
+        self.engine = make_engine(engine, hm, scenario, self.traj, compiled=compiled)
         if controller is None:
             if scenario.controller_class is not None:
                 from humanoid_sim.controllers.loading import load_controller

@@ -109,8 +109,7 @@ class ThesisController:
 
     # ------------------------------------------------------------------ one call
     def __call__(self, obs: Observation) -> Command:
-        out = self.evaluate(obs.k, obs.phase, obs.anchors, obs.t, obs.q, obs.v)
-        return out
+        return self.evaluate(obs.k, obs.phase, obs.anchors, obs.t, obs.q, obs.v)
 
     def run_info(self) -> dict:
         """For the run's summary: how many weld-model stages ran compiled (none on the oracle engine)."""

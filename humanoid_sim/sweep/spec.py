@@ -34,7 +34,6 @@ expected; the command prints it and exits with status 2 before anything runs or 
 from __future__ import annotations
 
 import copy
-import difflib
 import hashlib
 import itertools
 import json
@@ -45,10 +44,9 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import numpy as np
-import yaml
 
 # The scenario module's YAML loader (safe, rejects duplicate keys): sweep files obey the same rules.
-from humanoid_sim.scenario import ScenarioError, _StrictSafeLoader, parse_scenario
+from humanoid_sim.scenario import ScenarioError, parse_scenario, read_yaml, suggest_key
 
 TOP_KEYS = ("base", "description", "grid", "random")
 RANDOM_KEYS = ("n", "seed")
@@ -314,26 +312,8 @@ def _short(v: Any) -> str:
 
 
 # --------------------------------------------------------------------------------------------- reading
-def _suggest(key: str, allowed: tuple[str, ...]) -> str:
-    close = difflib.get_close_matches(key, list(allowed), n=1, cutoff=0.5)
-    return f"; did you mean {close[0]!r}?" if close else f"; allowed: {', '.join(allowed)}"
-
-
 def _read_yaml(p: Path, what: str) -> Any:
-    if not p.exists():
-        raise SweepError(f"{p}: no such {what}")
-    if not p.is_file():
-        raise SweepError(f"{p}: not a regular file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SweepError(f"{p}: cannot read as UTF-8 text: {exc}") from None
-    try:
-        return yaml.load(text, Loader=_StrictSafeLoader)  # noqa: S506 (a SafeLoader subclass)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise SweepError(f"{p}: not valid YAML{at}: {getattr(exc, 'problem', None) or exc}") from None
+    return read_yaml(p, what, SweepError)
 
 
 def _resolve_base(src: Path, base: Any) -> Path:
@@ -427,7 +407,7 @@ def parse_sweep(doc: Any, source: str | Path) -> SweepSpec:
         raise SweepError(f"{src}: expected a mapping with keys {', '.join(TOP_KEYS)}, got {_show(doc)}")
     for k in doc:
         if k not in TOP_KEYS:
-            raise SweepError(f"{src}: {k}: unknown key{_suggest(str(k), TOP_KEYS)}")
+            raise SweepError(f"{src}: {k}: unknown key{suggest_key(str(k), TOP_KEYS)}")
     if "base" not in doc:
         raise SweepError(f"{src}: base: missing (expected the path of the base scenario YAML)")
     desc = doc.get("description", "")
