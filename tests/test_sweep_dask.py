@@ -275,24 +275,32 @@ def test_scheduler_rows_equal_serial_runs_and_one_model_per_worker(dask_cluster,
 
 
 def _kill_a_busy_worker(client, out: Path, proc: subprocess.Popen) -> tuple[int, int, list[int]]:
-    """Once the sweep has written a row, SIGKILL the first worker process seen starting a new walk (polled every
-    ~50 ms: the walk, ~1.2 s long, is then surely still running); returns its pid, the rows written before, and
-    the walks (indices) it was running."""
+    """Once one walk has finished (its key left every worker's executing set), SIGKILL a worker running a walk
+    first seen less than 0.5 s ago (polled every ~50 ms; a walk lasts ~1.2 s, so it is surely still running);
+    returns its pid, the rows written before, and the walks (indices) it was running.
+
+    The finish is observed on the workers, not in sweep.parquet: the client may write its rows after the next
+    walks started, and waiting for the file then missed every fresh walk (seen once in CI)."""
     deadline = time.monotonic() + 120
-    seen: set[str] = set()
+    first_seen: dict[str, float] = {}
     while True:
         assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline, "no row and no walk starting within 120 s"
+        assert time.monotonic() < deadline, "no walk finished and no walk starting within 120 s"
         running = client.run(lambda dask_worker: [str(ts.key) for ts in dask_worker.state.executing])
-        started = {w: [k for k in keys if k.startswith("walk-") and k not in seen] for w, keys in running.items()}
-        n_rows = len(read_rows(out)) if (out / "sweep.parquet").exists() else 0
-        busy = [w for w, keys in started.items() if keys]
-        if n_rows and busy and seen:
+        now = time.monotonic()
+        walks = {w: [k for k in keys if k.startswith("walk-")] for w, keys in running.items()}
+        executing = {k for keys in walks.values() for k in keys}
+        finished = set(first_seen) - executing
+        for k in executing:
+            first_seen.setdefault(k, now)
+        fresh = {w: [k for k in keys if now - first_seen[k] < 0.5] for w, keys in walks.items()}
+        busy = [w for w, keys in fresh.items() if keys]
+        if finished and busy:
             addr = busy[0]
             pid = client.run(os.getpid, workers=[addr])[addr]
+            n_rows = len(read_rows(out)) if (out / "sweep.parquet").exists() else 0
             os.kill(pid, signal.SIGKILL)
-            return pid, n_rows, [int(k.split("-")[1]) for k in started[addr]]
-        seen.update(k for keys in running.values() for k in keys)
+            return pid, n_rows, [int(k.split("-")[1]) for k in walks[addr]]
         time.sleep(0.05)
 
 
