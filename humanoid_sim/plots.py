@@ -593,8 +593,8 @@ def plot_all(results_path: str | Path, out_dir: str | Path, traj: "ReferenceTraj
     if report is None:
         report = audit_of(r, mu, hm)
     stems = figure_stems(r)
-    # contact_world and contact_audit are the slowest two: give them to different workers
-    stems = ["contact_world"] + [s for s in stems if s not in ("contact_world", "contact_audit")] + ["contact_audit"]
+    # contact_world and contact_audit are the slowest two: first and last, so that different workers draw them
+    stems = sorted(stems, key=lambda s: {"contact_world": -1, "contact_audit": 1}.get(s, 0))
     workers = min(4, os.cpu_count() or 1) if workers is None else max(1, int(workers))
     shares = [stems[i::workers] for i in range(workers)]
     done: dict[str, Path] = {}

@@ -212,6 +212,7 @@ def play_live(results_npz: str | Path, hm: "HumanoidModel | None" = None,
         import zmq
 
         vis = server.visualizer()
+        print(f"(meshcat server: process {server.proc.pid}, listening on 127.0.0.1 only)", flush=True)
         try:
             setup_scene(vis, r, hm, traj, fr)
             if open_browser:
