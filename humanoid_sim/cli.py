@@ -4,7 +4,11 @@
                            [--no-plots] [--no-html] [--view]
 
 Exit status: 0 when the walk completes every planned phase, 1 when it fails (the reason is printed, the
-partial results are saved with completed = false), 2 on bad input (nothing is written).
+partial results are saved with completed = false) or is stopped by Ctrl-C or SIGTERM (which also stop the live
+meshcat server), 2 on bad input (nothing is written).  The first run after an install builds the compiled kernel's
+cache (:mod:`humanoid_sim.kernel.build`).  Outputs get the mode a plain ``open()`` gives; the figures and playback
+of an earlier run in the output folder are removed before this run writes its own, and the summary lists what it
+wrote.
 """
 
 from __future__ import annotations
@@ -14,9 +18,14 @@ import json
 import sys
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from humanoid_sim import PACKAGE_DIR
+
+if TYPE_CHECKING:  # pragma: no cover
+    from humanoid_sim.kernel.build import KernelBuild
 
 DEFAULT_SCENARIO = PACKAGE_DIR.parent / "scripts" / "params" / "sim1.yaml"
 
@@ -37,7 +46,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="stop the simulation at this time (s)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
     p.add_argument("--no-html", action="store_true", help="do not write playback.html")
-    p.add_argument("--view", action="store_true", help="play the run live in a meshcat server on 127.0.0.1")
+    p.add_argument("--view", action="store_true", help="play the run live in a meshcat server on 127.0.0.1: prints "
+                   "the URL, waits for a browser, plays there; Ctrl-C stops the server")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -91,7 +101,7 @@ def _main(argv: list[str] | None) -> int:
         return 1
 
 
-def _build_kernel(args: argparse.Namespace) -> "object | None":
+def _build_kernel(args: argparse.Namespace) -> "KernelBuild | None":
     """Start compiling the kernel into numba's disk cache in child processes when this run needs it and the cache
     is missing or stale (:mod:`humanoid_sim.kernel.build`); the running build, or None."""
     import os
@@ -115,7 +125,7 @@ def _build_kernel(args: argparse.Namespace) -> "object | None":
     return build.KernelBuild(args.scenario).start()
 
 
-def _wait_kernel(running, quiet: bool) -> None:
+def _wait_kernel(running: "KernelBuild", quiet: bool) -> None:
     """Wait for a :class:`KernelBuild`, showing its progress; a failed build is reported and left to numba."""
     from humanoid_sim.kernel.build import KernelBuildError
 

@@ -282,7 +282,7 @@ def test_no_kernel_runs_every_stage_on_the_reference_path(tmp_path):
 
 
 # --------------------------------------------------------------------------------------------- outputs
-@pytest.mark.parametrize("umask", [0o022, 0o027])
+@pytest.mark.parametrize("umask", [0o022, 0o027], ids=["umask-022", "umask-027"])
 def test_outputs_get_the_mode_open_would_give(tmp_path, umask):
     """Every output (also those written through a temporary file and a rename) has mode 0666 less the umask, as
     a plain open() would give it: 0644 under the usual umask 022, so results can be shared."""
