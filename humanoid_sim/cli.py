@@ -4,7 +4,11 @@
                            [--no-plots] [--no-html] [--view]
 
 Exit status: 0 when the walk completes every planned phase, 1 when it fails (the reason is printed, the
-partial results are saved with completed = false), 2 on bad input (nothing is written).
+partial results are saved with completed = false) or is stopped by Ctrl-C or SIGTERM (which also stop the live
+meshcat server), 2 on bad input (nothing is written).  The first run after an install builds the compiled kernel's
+cache (:mod:`humanoid_sim.kernel.build`).  Outputs get the mode a plain ``open()`` gives; the figures and playback
+of an earlier run in the output folder are removed before this run writes its own, and the summary lists what it
+wrote.
 """
 
 from __future__ import annotations
@@ -14,9 +18,13 @@ import json
 import sys
 from pathlib import Path
 
+from typing import TYPE_CHECKING
 
 from humanoid_sim import PACKAGE_DIR
 from humanoid_sim.engines import ENGINE_NAMES
+
+if TYPE_CHECKING:  # pragma: no cover
+    from humanoid_sim.kernel.build import KernelBuild
 
 DEFAULT_SCENARIO = PACKAGE_DIR.parent / "scripts" / "params" / "sim1.yaml"
 
@@ -37,7 +45,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="stop the simulation at this time (s)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
     p.add_argument("--no-html", action="store_true", help="do not write playback.html")
-    p.add_argument("--view", action="store_true", help="play the run live in a meshcat server on 127.0.0.1")
+    p.add_argument("--view", action="store_true", help="play the run live in a meshcat server on 127.0.0.1: prints "
+                   "the URL, waits for a browser, plays there; Ctrl-C stops the server")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -47,7 +56,29 @@ def _fail_input(msg: str) -> int:
     return 2
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an interrupt so that the run stops as after Ctrl-C: partial results saved, child
+    processes (the meshcat server, the kernel build) stopped."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
 def main(argv: list[str] | None = None) -> int:
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():  # signal handlers can only be set there
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+        try:
+            return _main(argv)
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+    return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     args = _parser().parse_args(argv)
     if args.until is not None and not (args.until > 0):
         return _fail_input(f"--until: expected a positive time in s, got {args.until}")
@@ -63,27 +94,77 @@ def main(argv: list[str] | None = None) -> int:
         return _fail_input(f"--out: {out} exists and is not a folder")
     try:
         return _run(args, scenario, out)
-    except KeyboardInterrupt:  # outside the simulation loop (which keeps its partial log itself)
-        print("walk.py: interrupted; files already written are complete (atomic writes)", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # outside the simulation loop (which keeps its partial log itself)
+        what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+        print(f"walk.py: {what}; files already written are complete (atomic writes)", file=sys.stderr)
         return 1
+
+
+def _build_kernel(args: argparse.Namespace) -> "KernelBuild | None":
+    """Start compiling the kernel into numba's disk cache in child processes when this run needs it and the cache
+    is missing or stale (:mod:`humanoid_sim.kernel.build`); the running build, or None."""
+    import os
+
+    from humanoid_sim import kernel
+
+    if args.engine != "pinocchio" or args.no_kernel or not kernel.AVAILABLE:
+        return None
+    if os.environ.get("HUMANOID_SIM_KERNEL_BUILD", "1") == "0":  # compile in this process, the ordinary way
+        if not kernel.cache_present() and not args.quiet:
+            print("walk.py: compiling the simulation kernel in this process (HUMANOID_SIM_KERNEL_BUILD=0: up to a "
+                  "minute)", file=sys.stderr)
+        return None
+    from humanoid_sim.kernel import build
+
+    if build.cache_ready():
+        return None
+    if not args.quiet:
+        print("walk.py: compiling the simulation kernel (first run after an install or an edit of "
+              "humanoid_sim/kernel/compiled.py; numba caches it for later runs)", file=sys.stderr)
+    return build.KernelBuild(args.scenario).start()
+
+
+def _wait_kernel(running: "KernelBuild", quiet: bool) -> None:
+    """Wait for a :class:`KernelBuild`, showing its progress; a failed build is reported and left to numba."""
+    from humanoid_sim.kernel.build import KernelBuildError
+
+    bar = None
+    if not quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(running.parts), bar_format="  kernel: {n}/{total} parts compiled [{elapsed}] {desc}",
+                   file=sys.stderr)
+    try:
+        def done(part: str, elapsed: float) -> None:
+            if bar is not None:
+                bar.set_description_str(f"{part} done at {elapsed:.1f} s", refresh=False)
+                bar.update(1)
+
+        # the elapsed time ticks on a terminal; elsewhere (a log file) only the finished parts are printed
+        running.wait(progress=done, tick=(bar.refresh if bar is not None and sys.stderr.isatty() else None))
+    except KernelBuildError as exc:
+        print(f"walk.py: warning: {exc}; compiling in this process instead (up to a minute)", file=sys.stderr)
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def _run(args: argparse.Namespace, scenario, out: Path) -> int:
     """Simulate a validated scenario and write its outputs into ``out``; the exit status."""
-    from humanoid_sim.model import load_model
-    from humanoid_sim.results import atomic_write_text
-    from humanoid_sim.simulate import Simulator
-    from humanoid_sim.summary import contact_audit, summarize
+    running = _build_kernel(args)
+    try:
+        from humanoid_sim.controllers.loading import ControllerLoadError
+        from humanoid_sim.model import load_model
+        from humanoid_sim.results import atomic_write_text
+        from humanoid_sim.simulate import Simulator
+        from humanoid_sim.summary import contact_audit, summarize
 
-    hm = load_model()
-    if args.engine == "pinocchio" and scenario.controller_class is None:
-        from humanoid_sim import kernel
-
-        if not args.no_kernel and kernel.AVAILABLE and not kernel.cache_present() and not args.quiet:
-            print("walk.py: compiling the simulation kernel (first run after an install or an edit of "
-                  "humanoid_sim/kernel/compiled.py: up to a minute, cached for later runs)", file=sys.stderr)
-    from humanoid_sim.controllers.loading import ControllerLoadError
-
+        hm = load_model()
+        if running is not None:
+            _wait_kernel(running, args.quiet)
+    finally:
+        if running is not None:
+            running.stop()
     try:
         sim = Simulator(hm, scenario, compiled=False if args.no_kernel else None, engine=args.engine)
     except ControllerLoadError as exc:
@@ -91,60 +172,101 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
     t_nominal = sim.traj.phases[-1].t_end
     bar = None
     progress = None
+    total = round(args.until if args.until is not None else t_nominal, 2)
     if not args.quiet:
         from tqdm import tqdm
 
-        total = args.until if args.until is not None else t_nominal
-        bar = tqdm(total=round(total, 2), unit="sim s", bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} sim s "
-                   "[{elapsed}<{remaining}] {postfix}", file=sys.stderr)
-        state = {"last": 0.0}
+        # no {postfix} (tqdm prefixes it with ", "): the phase goes into {desc}, at the end of the line
+        bar = tqdm(total=total, unit="sim s", file=sys.stderr,
+                   bar_format="{percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} sim s [{elapsed}<{remaining}] {desc}")
 
         def progress(t: float, k: int) -> None:
-            now = round(min(t, total), 2)
-            if now > state["last"]:
-                bar.update(round(now - state["last"], 2))
-                state["last"] = now
-            bar.set_postfix_str(f"phase {k + 1}/{sim.traj.n_phases} {sim.traj.phases[k].name}", refresh=False)
+            now = min(round(t, 2), total)  # never past the total: tqdm would warn and count time backwards
+            if now > bar.n:
+                bar.update(now - bar.n)
+                bar.n = now  # exactly, without the round-off of accumulated increments
+            bar.set_description_str(f"phase {k + 1}/{sim.traj.n_phases} {sim.traj.phases[k].name}", refresh=False)
 
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         return _fail_input(f"--out: cannot create {out}: {exc}")
     result = sim.run(t_end=args.until, progress=progress)
+    until_ok = args.until is not None and result.reason.startswith("stopped at")
     if bar is not None:
+        if result.completed or until_ok:  # the walk reached its end: the bar shows it whatever the last step's time
+            bar.n = total
+            bar.refresh()
         bar.close()
-    phase_names = [p.name for p in sim.traj.phases]
+    phase_names = result.phase_names
     result.log.save(out / "results.npz", phase_names)
     summary = summarize(result, scenario.name, args.engine)
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")  # rewritten with the audit
+    stale = _remove_stale_outputs(out)
     # contact-feasibility audit (humanoid_sim/audit.py): the "contact" section of summary.json
     summary["contact"], report = contact_audit(result, scenario, hm, phase_names)
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    figures: list[Path] = []
     if not args.no_plots and report is not None and len(result.log):
-        from humanoid_sim.plots_audit import plot_contact_audit
-
-        plot_contact_audit(report, out / "contact_audit.png", title=scenario.name)
-    if not args.no_plots and len(result.log):
         from humanoid_sim.plots import plot_all
 
-        plot_all(out / "results.npz", out, traj=sim.traj)
+        figures = plot_all(out / "results.npz", out, traj=sim.traj, report=report,
+                           mu=scenario.contact.friction_coefficient, title=scenario.name, hm=hm)
+    html = None
     if not args.no_html and len(result.log):
         try:
             from humanoid_sim.viewer import write_playback
         except ImportError:
             write_playback = None
         if write_playback is not None:
-            write_playback(out / "results.npz", out / "playback.html", hm=hm, traj=sim.traj)
+            html = write_playback(out / "results.npz", out / "playback.html", hm=hm, traj=sim.traj)
     _print_summary(summary, out)
+    _print_outputs(args, out, figures, html, stale, len(result.log))
     if args.view and len(result.log):
         from humanoid_sim.viewer import play_live
 
         play_live(out / "results.npz", hm=hm, traj=sim.traj)
-    until_ok = args.until is not None and result.reason.startswith("stopped at")
     if not (result.completed or until_ok):
         print(f"walk.py: run failed: {result.reason}", file=sys.stderr)
         return 1
     return 0
+
+
+def output_names() -> list[str]:
+    """Every file name walk.py may write into its output folder besides results.npz and summary.json (figures,
+    figures of earlier versions, playback.html)."""
+    from humanoid_sim.plots import FIGURES, LEGACY_STEMS
+
+    return [f"{stem}.png" for stem in FIGURES + LEGACY_STEMS] + ["playback.html"]
+
+
+def _remove_stale_outputs(out: Path) -> list[str]:
+    """Remove the figures and playback an earlier run left in ``out`` (only walk.py's own file names), so that none
+    passes for this run's; the names removed.  This run then writes its own."""
+    removed = []
+    for name in output_names():
+        path = out / name
+        if path.is_file():
+            path.unlink()
+            removed.append(name)
+    return removed
+
+
+def _print_outputs(args: argparse.Namespace, out: Path, figures: list[Path], html: Path | None, stale: list[str],
+                   steps: int) -> None:
+    written = {p.name for p in figures} | ({html.name} if html is not None else set())
+    parts = ["results.npz", "summary.json"]
+    parts.append(f"{len(figures)} figures (*.png)" if figures else
+                 "no figures (" + ("--no-plots" if args.no_plots else "nothing to plot" if not steps else
+                                   "the contact audit failed") + ")")
+    parts.append("playback.html" if html is not None else
+                 "no playback.html (" + ("--no-html" if args.no_html else "nothing to play" if not steps else
+                                         "meshcat missing") + ")")
+    print(f"  outputs in {out}/: " + ", ".join(parts))
+    gone = sorted(set(stale) - written)
+    if gone:
+        print(f"  removed {len(gone)} outputs of an earlier run that this run did not write: "
+              + ", ".join(gone[:4]) + (", ..." if len(gone) > 4 else ""))
 
 
 def _print_summary(s: dict, out: Path) -> None:
@@ -173,7 +295,6 @@ def _print_summary(s: dict, out: Path) -> None:
               f"the sole R {pct(c['cop_outside_fraction']['R'])} / L {pct(c['cop_outside_fraction']['L'])}; "
               f"friction exceeded R {pct(c['friction_exceeded_fraction']['R'])} / "
               f"L {pct(c['friction_exceeded_fraction']['L'])}; ZMP outside {pct(c['zmp_outside_fraction'])}")
-    print(f"  results in {out}/")
 
 
 if __name__ == "__main__":

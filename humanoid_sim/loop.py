@@ -64,6 +64,10 @@ class SimResult:
     steps: int
     stage_evaluations: int
     extra: dict = field(default_factory=dict)
+    phase_names: list[str] = field(default_factory=list)
+    """The name of each phase index the log's ``phase`` column holds: the trajectory's planned phases, except that a
+    held run (``run(hold=...)``, which never leaves index 0) names the phase it held.  Save and audit the log with
+    these (``log.save(path, result.phase_names)``)."""
 
 
 def thresholds_of(scenario: Scenario) -> SwitchThresholds:
@@ -173,9 +177,12 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
             close()
     extra = {"nominal_end": nominal_end, "engine": engine.name, "controller": control.name}
     extra.update(getattr(controller, "run_info", lambda: {})())
+    names = [p.name for p in traj.phases]
+    if hold is not None:
+        names[0] = hold.value
     return SimResult(log=log, phases=sel.records, phases_planned=n_phases, completed=completed, reason=reason,
                      sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps, stage_evaluations=control.calls,
-                     extra=extra)
+                     extra=extra, phase_names=names)
 
 
 __all__ = ["RUN_ERRORS", "SimResult", "run", "thresholds_of"]

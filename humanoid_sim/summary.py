@@ -81,7 +81,7 @@ def summarize_with_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
                          phase_names: list[str]) -> dict[str, Any]:
     """:func:`summarize` plus the contact-feasibility audit (:func:`contact_audit`) as its ``contact`` section, as
     ``walk.py`` writes summary.json.  ``scenario``: the :class:`humanoid_sim.scenario.Scenario` run (its name and
-    friction coefficient); ``phase_names``: the run's planned phase names (``[p.name for p in traj.phases]``)."""
+    friction coefficient); ``phase_names``: the names of the logged phase indices (``result.phase_names``)."""
     summary = summarize(result, scenario.name, engine)
     summary["contact"] = contact_audit(result, scenario, hm, phase_names)[0]
     return summary

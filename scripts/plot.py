@@ -1,9 +1,10 @@
 #!/usr/bin/env python
 """Redraw the figures of a run: ``python scripts/plot.py results/sim1/results.npz [--out DIR] [--scenario YAML]``.
 
-Writes the PNGs of :func:`humanoid_sim.plots.plot_all` into ``--out`` (default: the folder of results.npz).
-The reference-trajectory figures (thesis Figs. 6.51-6.53) need the scenario: pass ``--scenario``, or leave it
-out and the scenario named in the run's summary.json is looked up in scripts/params/.
+Writes every figure ``walk.py`` draws (:data:`humanoid_sim.plots.FIGURES`, by :func:`humanoid_sim.plots.plot_all`,
+the same call) into ``--out`` (default: the folder of results.npz).  The reference-trajectory figures (thesis Figs.
+6.51-6.53) and the audit's friction coefficient come from the scenario: pass ``--scenario``, or leave it out and the
+scenario named in the run's summary.json is looked up in scripts/params/.
 Exit status 0 on success, 2 on bad input.
 """
 
@@ -39,27 +40,29 @@ def main(argv: list[str] | None = None) -> int:
     if not args.results.is_file():
         print(f"plot.py: error: results file not found: {args.results}", file=sys.stderr)
         return 2
-    from humanoid_sim.plots import PlotError, plot_all
+    from humanoid_sim.plots import DEFAULT_FRICTION, PlotError, plot_all
 
-    traj = None
+    traj, mu, title = None, DEFAULT_FRICTION, ""
     scenario = _scenario_path(args.results, args.scenario)
     if scenario is not None:
         from humanoid_sim.scenario import ScenarioError, load_scenario
         from humanoid_sim.trajectory import ReferenceTrajectory
 
         try:
-            traj = ReferenceTrajectory(load_scenario(scenario).path)
+            sc = load_scenario(scenario)
+            traj = ReferenceTrajectory(sc.path)
         except ScenarioError as exc:
             print(f"plot.py: error: {exc}", file=sys.stderr)
             return 2
+        mu, title = sc.contact.friction_coefficient, sc.name
     out = args.out if args.out is not None else args.results.parent
     try:
-        paths = plot_all(args.results, out, traj=traj)
+        paths = plot_all(args.results, out, traj=traj, mu=mu, title=title)
     except PlotError as exc:
         print(f"plot.py: error: {args.results}: {exc}", file=sys.stderr)
         return 2
     print(f"{len(paths)} figures in {out}/" + ("" if traj is not None else " (no scenario: reference figures "
-                                                                           "skipped)"))
+                                                                           f"skipped, audit with mu = {mu:g})"))
     return 0
 
 

@@ -5,9 +5,12 @@ thesis colours."""
 from __future__ import annotations
 
 import importlib.util
+import re
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from matplotlib.colors import to_rgb
 from matplotlib.patches import Rectangle
@@ -24,14 +27,14 @@ RUN_UNTIL = 1.0  # s: LFFSSP, RFFDSP and the start of RFFSSP of Simulation 1 (th
 EXPECTED_FILES = {
     "reference_iso.png", "reference_xy.png", "reference_xz.png",                          # Figs. 6.51-6.53
     "phases.png",
-    "joints_theta3-6.png", "joints_theta7-10.png", "joints_theta11-14.png",               # Figs. 6.54-6.56
-    "joints_theta15-17l.png", "joints_theta18-20.png", "joints_theta21-24.png",           # Figs. 6.57-6.59
-    "joints_theta25-27.png",                                                              # Fig. 6.60
+    "joints_toe_ankle_pitch.png", "joints_ankle_yaw_roll.png", "joints_knee_hip_pitch.png",  # Figs. 6.54-6.56
+    "joints_hip_roll_yaw.png", "joints_waist.png", "joints_shoulders.png",                # Figs. 6.57-6.59
+    "joints_neck.png",                                                                    # Fig. 6.60
     "task_hip.png", "task_toe_R.png", "task_toe_L.png",                                   # Figs. 6.61-6.63
     "torques_T1-7.png", "torques_T9-15.png", "torques_T2-8.png", "torques_T10-16.png",    # Figs. 6.64-6.67
     "torques_T17-19.png", "torques_T20-23.png", "torques_T24-26.png",                     # Figs. 6.68-6.70
     "grf_force_R.png", "grf_force_L.png", "grf_moment_R.png", "grf_moment_L.png",         # Figs. 6.71-6.74
-    "contact_world.png",
+    "contact_world.png", "contact_audit.png",
 }
 THESIS_PHASE_RGB = {"LFFSSP": to_rgb("red"), "RFFDSP": to_rgb("blue"), "RFFSSP": to_rgb("magenta"),
                     "LFFDSP": to_rgb("cyan")}  # thesis L4219-4221
@@ -86,10 +89,11 @@ def test_plot_script_rejects_bad_input(tmp_path: Path) -> None:
 
 
 def _data_lines(fig):
+    """Lines that draw a results.npz column against t (gid "<signal>:<index>")."""
     for ax in fig.axes:
         for line in ax.get_lines():
             gid = line.get_gid()
-            if gid and not gid.startswith("limit:"):
+            if gid and not gid.startswith(("limit:", "ground:", "audit:", "reference:")):
                 yield ax, line, gid
 
 
@@ -98,6 +102,8 @@ def test_plotted_lines_are_the_logged_data(figures, run_npz: Path) -> None:
     plotted: dict[str, set[tuple[int, ...]]] = {}
     for stem, fig in figures.items():
         lines = list(_data_lines(fig))
+        if stem == "contact_audit":  # draws audit quantities, not results columns (tests/test_audit.py checks them)
+            continue
         assert lines, f"{stem}: no data line"
         for _, line, gid in lines:
             signal, idx = gid.split(":")
@@ -144,15 +150,19 @@ def test_axes_carry_units_and_phase_shading(figures, run_npz: Path) -> None:
     assert len(expected) == 3, "the 1 s run should cross LFFSSP -> RFFDSP -> RFFSSP"
     for stem, fig in figures.items():
         for ax in fig.axes:
-            ylabel = ax.get_ylabel()
-            assert ylabel.endswith("]") and "[" in ylabel, f"{stem}: y label {ylabel!r} has no unit"
+            for label in (ax.get_xlabel(), ax.get_ylabel()):
+                # one unit style: "quantity [unit]", never "(unit)"
+                assert not label or (label.endswith("]") and "[" in label), f"{stem}: label {label!r}"
+            assert ax.get_ylabel(), f"{stem}: an axes without a y label"
+            if ax.get_label() == "ground view":  # the x-y view of contact_world, not a time plot
+                continue
             spans = sorted(((p.get_x() if isinstance(p, Rectangle) else p.get_xy()[0][0]), p.get_facecolor())
                            for p in ax.patches)
             assert len(spans) == len(expected), f"{stem}: {len(spans)} phase spans, expected {len(expected)}"
             for (x0, colour), (t0, rgb) in zip(spans, expected):
                 assert x0 == t0
                 assert tuple(colour[:3]) == rgb, f"{stem}: phase at t = {t0} shaded {colour[:3]}, want {rgb}"
-        assert fig.axes[-1].get_xlabel() == "t [s]", stem
+        assert "t [s]" in {ax.get_xlabel() for ax in fig.axes}, stem
 
 
 def test_parallel_drawing_writes_the_same_files(run_npz: Path, tmp_path: Path) -> None:
@@ -164,3 +174,167 @@ def test_parallel_drawing_writes_the_same_files(run_npz: Path, tmp_path: Path) -
     assert [p.name for p in serial] == [p.name for p in parallel] and len(serial) >= 20
     for a, b in zip(serial, parallel):
         assert a.read_bytes() == b.read_bytes(), a.name
+
+
+# --------------------------------------------------------------------------------------------- style
+def _foot_of(gid: str) -> str | None:
+    """The foot a line belongs to, read from its gid (the results column it draws), or "outside" for the
+    outside-the-polygon markers; None for lines of no foot.  Written out here from the results.npz layout."""
+    sig, _, idx = gid.partition(":")
+    if sig in ("toe_R_p", "toe_L_p"):
+        return sig[4]
+    if sig in ("foot_wrench", "cop", "in_contact"):
+        return "RL"[int(idx.split(",")[0])]
+    if sig in ("body_force", "body_moment"):  # rows: bodies 1, 2, 3, 4 = right toe, left toe, right, left foot
+        return "RLRL"[int(idx.split(",")[0])]
+    if sig == "reference":
+        return idx[-1] if idx.startswith("toe_") else None
+    if sig == "audit":
+        return idx.split(":")[1] or None
+    if sig == "ground":
+        if idx.endswith("_outside"):
+            return "outside"
+        m = re.match(r"(?:sole|cop)_([RL])", idx)
+        return m.group(1) if m else None
+    return None
+
+
+def test_one_colour_per_foot_in_every_figure(figures, hm: HumanoidModel) -> None:
+    """Every line of a foot (toe paths, ground reactions, CoP, sole outlines, contact flags, audit) has that foot's
+    colour, in every figure including the reference and audit figures; the two feet differ; no other line uses
+    either colour; the outside markers have a colour of their own."""
+    from matplotlib.colors import to_hex
+
+    from humanoid_sim.plots import reference_figures
+    from humanoid_sim.scenario import load_scenario
+    from humanoid_sim.trajectory import ReferenceTrajectory
+
+    every = {**figures, **reference_figures(ReferenceTrajectory(load_scenario(SIM1).path), dt=0.05)}
+    seen: dict[str, set[str]] = {}
+    where: dict[str, set[str]] = {}
+    others: list[tuple[str, str, str]] = []
+    for stem, fig in every.items():
+        for ax in fig.axes:
+            for line in ax.get_lines():
+                gid = line.get_gid()
+                if not gid or gid.startswith("limit:"):
+                    continue
+                foot = _foot_of(gid)
+                colour = to_hex(line.get_color())
+                if foot is None:
+                    others.append((stem, gid, colour))
+                else:
+                    seen.setdefault(foot, set()).add(colour)
+                    where.setdefault(foot, set()).add(stem)
+    common = {"phases", "contact_world", "contact_audit", "reference_iso", "reference_xy", "reference_xz"}
+    for foot in "RL":  # the figures that show one foot, and the ones that show both
+        assert common | {f"task_toe_{foot}", f"grf_force_{foot}", f"grf_moment_{foot}"} <= where[foot], where[foot]
+    assert len(seen["R"]) == 1 and len(seen["L"]) == 1, seen
+    assert seen["R"] != seen["L"] and seen["outside"].isdisjoint(seen["R"] | seen["L"])
+    feet = seen["R"] | seen["L"]
+    assert not [o for o in others if o[2] in feet], [o for o in others if o[2] in feet][:5]
+
+
+def _render_extents(fig):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def test_legends_cover_neither_titles_nor_plots(figures) -> None:
+    """Every legend lies inside its figure and overlaps no plotting area, no axes title and no figure title (the
+    "(world frame)" of task_hip and the ZMP of contact_world were hidden under legends)."""
+    for stem, fig in figures.items():
+        renderer = _render_extents(fig)
+        W, H = fig.bbox.width, fig.bbox.height
+        legends = list(fig.legends) + [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+        assert legends, stem
+        blocked = [ax.get_window_extent(renderer) for ax in fig.axes]
+        blocked += [ax.title.get_window_extent(renderer) for ax in fig.axes if ax.get_title()]
+        if fig._suptitle is not None:
+            blocked.append(fig._suptitle.get_window_extent(renderer))
+        for leg in legends:
+            box = leg.get_window_extent(renderer)
+            assert box.x0 >= 0 and box.y0 >= 0 and box.x1 <= W + 0.5 and box.y1 <= H + 0.5, (stem, box)
+            for other in blocked:
+                assert not box.overlaps(other), f"{stem}: a legend covers {other}"
+        if fig._suptitle is not None:  # the title itself is whole
+            box = fig._suptitle.get_window_extent(renderer)
+            assert box.x0 >= 0 and box.x1 <= W and box.y1 <= H + 0.5, (stem, box)
+
+
+def test_joint_figures_name_their_joints(figures) -> None:
+    """Each joint axis is labelled with the joint it turns (the actuator groups of actuators.py name the joints;
+    the URDF's axis gives roll x / pitch y / yaw z) and its thesis angle; no title or file is named by angle range."""
+    from humanoid_sim.actuators import GROUPS
+
+    root = ET.parse(REPO / "models" / "thesis_humanoid.urdf").getroot()
+    axis = {j.get("name"): {"1 0 0": "roll", "0 1 0": "pitch", "0 0 1": "yaw"}[j.find("axis").get("xyz")]
+            for j in root.findall("./joint[@type='revolute']")}
+    joint = {th: g.name.replace("_", " ") for g in GROUPS for th in g.thetas}
+    stems = [s for s in figures if s.startswith("joints_")]
+    assert len(stems) == 7
+    named = set()
+    for stem in stems:
+        assert "theta" not in stem
+        fig = figures[stem]
+        assert not re.search(r"theta\d+\w* to theta", fig._suptitle.get_text()), fig._suptitle.get_text()
+        for ax in fig.axes:
+            th = re.search(r"(theta\d+[rl]?) \[rad\]", ax.get_ylabel()).group(1)
+            assert f"{joint[th]} {axis[th]}" in ax.get_ylabel(), (stem, ax.get_ylabel())
+            named.add(th)
+    assert named == set(joint)
+
+
+def test_contact_world_draws_the_sole_outlines(figures, run_npz: Path, hm: HumanoidModel) -> None:
+    """The ground view of contact_world draws, for each single-support phase, the supporting sole: the model's sole
+    rectangle (models/thesis_humanoid.yaml) carried by the foot body (O_3 right, O_4 left) at the phase's first
+    step; in double support a support polygon enclosing both soles."""
+    import yaml
+
+    r = load_results(run_npz)
+    sole = {k: v["value"] for k, v in yaml.safe_load((REPO / "models" / "thesis_humanoid.yaml").read_text())
+            ["foot_sole"].items()}
+    corners = np.array([[x, y, sole["sole_z"]] for x in (sole["heel_back_x"], sole["toe_front_x"])
+                        for y in (-sole["width"] / 2, sole["width"] / 2)])
+    ground = next(ax for ax in figures["contact_world"].axes if ax.get_label() == "ground view")
+    lines = {line.get_gid(): np.column_stack([line.get_xdata(), line.get_ydata()]) for line in ground.get_lines()}
+    data = hm.model.createData()
+    names = [str(n) for n in r["phase_names"]]
+    checked = 0
+    for k in np.unique(r["phase"]):
+        first = int(np.flatnonzero(r["phase"] == k)[0])
+        if names[k] in ("LFFSSP", "RFFSSP"):
+            foot = "L" if names[k] == "LFFSSP" else "R"
+            pin.framesForwardKinematics(hm.model, data, r["q"][first])
+            M = data.oMf[hm.frame_id("O_4" if foot == "L" else "O_3")]
+            world = (corners @ M.rotation.T + M.translation)[:, :2]
+            drawn = lines[f"ground:sole_{foot}:{first}"]
+            np.testing.assert_allclose(drawn[0], drawn[-1])  # a closed outline
+            # 1e-9 m: the same rigid transform of the same corners
+            assert all(np.min(np.linalg.norm(drawn - c, axis=1)) < 1e-9 for c in world)
+            checked += 1
+        else:
+            hull = lines[f"ground:support:{first}"]
+            soles = np.concatenate([v for g, v in lines.items() if g.startswith("ground:sole_")
+                                    and g.endswith(f":{first}")])
+            from matplotlib.path import Path as MplPath
+
+            # every sole corner inside or on the support polygon (radius 1e-9 m: points on its edges)
+            assert MplPath(hull).contains_points(soles, radius=1e-9).all() or \
+                MplPath(hull[::-1]).contains_points(soles, radius=1e-9).all()
+    assert checked >= 2  # LFFSSP and RFFSSP in the 1 s run
+
+
+def test_plot_script_redraws_every_figure_walk_draws(tmp_path: Path) -> None:
+    """walk.py and plot.py draw one list of figures: plot.py on walk.py's results writes the same file names."""
+    from humanoid_sim.cli import main
+
+    walked, redrawn = tmp_path / "walk", tmp_path / "plot"
+    assert main([str(SIM1), "--out", str(walked), "--until", "1.0", "--no-html", "--quiet"]) == 0
+    assert _plot_script().main([str(walked / "results.npz"), "--out", str(redrawn)]) == 0
+    by_walk = {p.name for p in walked.glob("*.png")}
+    assert by_walk == EXPECTED_FILES
+    assert {p.name for p in redrawn.glob("*.png")} == by_walk

@@ -221,8 +221,9 @@ def test_sigint_keeps_partial_results(tmp_path):
 def test_short_sim1_run_reports_the_contact_audit(tmp_path, hm, monkeypatch):
     import humanoid_sim.plots
 
-    # the other figure groups (humanoid_sim/plots.py, ~10 s) are not under test here: only contact_audit.png
-    monkeypatch.setattr(humanoid_sim.plots, "plot_all", lambda *a, **k: [])
+    # the other figures (humanoid_sim/plots.py, ~5 s) are not under test here: only contact_audit.png
+    monkeypatch.setattr(humanoid_sim.plots, "figure_stems", lambda r=None: ["contact_audit"])
+    monkeypatch.setattr(humanoid_sim.plots, "reference_figures", lambda *a, **k: {})
     out = tmp_path / "out"
     assert main([str(SIM1), "--out", str(out), "--quiet", "--no-html", "--until", "0.9"]) == 0
     png = out / "contact_audit.png"
@@ -278,3 +279,82 @@ def test_no_kernel_runs_every_stage_on_the_reference_path(tmp_path):
     if kernel.AVAILABLE:
         assert s_def["compiled_stages"] > 0.9 * 3 * s_def["steps"]
     assert np.abs(r_def["hip_p"] - r_ref["hip_p"]).max() < 1e-9
+
+
+# --------------------------------------------------------------------------------------------- outputs
+@pytest.mark.parametrize("umask", [0o022, 0o027], ids=["umask-022", "umask-027"])
+def test_outputs_get_the_mode_open_would_give(tmp_path, umask):
+    """Every output (also those written through a temporary file and a rename) has mode 0666 less the umask, as
+    a plain open() would give it: 0644 under the usual umask 022, so results can be shared."""
+    out = tmp_path / "out"
+    old = os.umask(umask)
+    try:
+        assert main([str(SIM1), "--out", str(out), "--quiet", "--until", "0.3"]) == 0
+    finally:
+        os.umask(old)
+    files = sorted(out.iterdir())
+    names = {p.name for p in files}
+    assert {"results.npz", "summary.json", "playback.html", "contact_audit.png", "task_hip.png"} <= names
+    for p in files:
+        assert (p.stat().st_mode & 0o777) == (0o666 & ~umask), f"{p.name}: {oct(p.stat().st_mode & 0o777)}"
+
+
+def test_no_stale_outputs_beside_a_new_run(tmp_path, capsys):
+    """A run with --no-plots --no-html removes the figures and playback an earlier run left in its folder (also
+    the names earlier versions used) and says which outputs there are; other files stay."""
+    from humanoid_sim.plots import FIGURES
+
+    out = tmp_path / "out"
+    out.mkdir()
+    stale = [f"{stem}.png" for stem in FIGURES] + ["joints_theta15-17l.png", "playback.html"]
+    for name in stale:
+        (out / name).write_bytes(b"from an earlier run")
+    (out / "my_notes.txt").write_text("mine")
+    assert main([str(SIM1), "--out", str(out), "--until", "0.3", "--no-plots", "--no-html", "--quiet"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["my_notes.txt", "results.npz", "summary.json"]
+    printed = capsys.readouterr().out
+    assert "results.npz, summary.json, no figures (--no-plots), no playback.html (--no-html)" in printed
+    assert f"removed {len(stale)} outputs of an earlier run" in printed
+
+
+# --------------------------------------------------------------------------------------------- terminal
+@pytest.mark.parametrize("until", [None, "1.0"], ids=["whole-walk", "until"])
+def test_progress_bar_reaches_100_percent_without_warnings(tmp_path, until):
+    """The bar ends at 100 % (the whole walk, and --until), with no stray comma before the phase and no tqdm
+    warning (--until once clamped a fraction above 1 and showed a negative remaining time)."""
+    args = [str(SIM1), "--out", str(tmp_path / "out"), "--no-plots", "--no-html"] + (["--until", until] if until
+                                                                                     else [])
+    r = walk(*args)
+    assert r.returncode == 0, r.stderr
+    last = r.stderr.replace("\r", "\n").strip().splitlines()[-1]
+    total = "1.00" if until else "6.88"
+    assert last.startswith("100%|") and f"{total}/{total} sim s" in last, last
+    assert "] phase" in last and "] , phase" not in last and ", phase" not in r.stderr, last
+    assert "Warning" not in r.stderr and "clamping" not in r.stderr and "<-" not in r.stderr, r.stderr
+
+
+# --------------------------------------------------------------------------------------------- first run
+def test_first_run_gives_the_same_bits_with_or_without_the_kernel_cache(tmp_path):
+    """The first run after an install builds the kernel cache in two child processes (humanoid_sim/kernel/build.py,
+    callees not re-optimised); its walk is bit for bit the walk of a kernel compiled the ordinary way in-process
+    (HUMANOID_SIM_KERNEL_BUILD=0), and so is the next run, which loads the cache.  Each cold compile is tens of
+    seconds: this is the slowest test of the file."""
+    def run(name: str, cache: Path, **env) -> dict:
+        out = tmp_path / name
+        r = subprocess.run([sys.executable, str(WALK), str(SIM1), "--out", str(out), "--until", "1.0", "--no-plots",
+                            "--no-html", "--quiet"], capture_output=True, text=True, cwd=ROOT, timeout=600,
+                           env={**ENV, "NUMBA_CACHE_DIR": str(cache), **env})
+        assert r.returncode == 0, r.stderr
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["compiled_stages"] > 0.9 * 3 * summary["steps"]  # the kernel ran, in both phase kinds
+        return load_results(out / "results.npz")
+
+    ordinary = run("ordinary", tmp_path / "cache-ordinary", HUMANOID_SIM_KERNEL_BUILD="0")
+    built = run("built", tmp_path / "cache-built")
+    assert any((tmp_path / "cache-built").rglob("*.nbi")), "the build wrote no cache"
+    cached = run("cached", tmp_path / "cache-built")
+    for other in (built, cached):
+        assert set(other) == set(ordinary)
+        for k, v in ordinary.items():
+            assert v.tobytes() == other[k].tobytes(), k  # bit for bit
+    assert set(np.unique(ordinary["basic_phase"])) >= {0, 1, 2}  # single and double support both ran

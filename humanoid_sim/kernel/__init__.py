@@ -42,4 +42,4 @@ def cache_present() -> bool:
     places = [here / "__pycache__"]
     if os.environ.get("NUMBA_CACHE_DIR"):
         places.append(Path(os.environ["NUMBA_CACHE_DIR"]))
-    return any(any(place.rglob("compiled.ssp_controller-*.nbi")) for place in places if place.is_dir())
+    return any(any(place.rglob("compiled.ssp_stage-*.nbi")) for place in places if place.is_dir())

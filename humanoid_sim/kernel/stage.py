@@ -87,6 +87,8 @@ class SupportKernel:
                                    tr.idx_v, tr.jR, tr.jp, tr.support, tr.fparent[w0], tr.fR[w0], tr.fp[w0])
         self._anchor_cache: dict[Phase, tuple] = {}
         self._coeff_cache: dict = {}
+        self._n_rates = 0
+        """Stage rates :meth:`advance` passes to the compiled call (set by :meth:`warm_up`; fewer are padded)."""
 
     def anchor(self, phase: Phase, anchors: Anchors) -> tuple[np.ndarray, np.ndarray, float]:
         """(R (n_w, 3, 3), p (n_w, 3), toe angle) of the phase's weld anchors and lock anchor as arrays, re-read
@@ -114,29 +116,37 @@ class SupportKernel:
         step-end states (``RungeKutta.step``'s ``advance``)."""
         aR, ap, alock = self.anchor(phase, anchors)
         q_out, v_out = np.empty_like(q), np.empty_like(v)
-        advance_on_support(q, v, self._coeffs(coeffs, len(vs)), tuple(vs), tuple(accs), h, aR[0], ap[0], alock,
+        n = len(vs)
+        if n < self._n_rates:  # one compiled variant: pad with zero coefficients, which the sum skips (same bits)
+            pad = self._n_rates - n
+            vs, accs = list(vs) + [v] * pad, list(accs) + [v] * pad
+        advance_on_support(q, v, self._coeffs(coeffs, n), tuple(vs), tuple(accs), h, aR[0], ap[0], alock,
                            *self._proj_args[phase], q_out, v_out)
         return q_out, v_out
 
     def warm_up(self, q: np.ndarray, n_stages: int) -> None:
         """Compile (or load from numba's cache) every entry point a run will call, before it starts: the projection
-        and the advance for 1 .. n_stages stage rates (one compiled variant per count), so that no compilation
-        lands inside a timed run."""
+        and the advance, so that no compilation lands inside a timed run.  ``n_stages``: the integrator's stage
+        count; :meth:`advance` passes that many rates whatever the stage (padding with zero coefficients), so that
+        one compiled variant serves them all."""
+        self._n_rates = max(self._n_rates, int(n_stages))
         phase = Phase.LFFSSP
         anchors = record_anchors(self.hm.model, q, phase.contacts)
         v = np.zeros(self.tree.nv)
         self.project(phase, anchors, q, v)
-        for n in range(1, n_stages + 1):
-            self.advance(phase, anchors, q, v, (1.0,) * n, [v] * n, [v] * n, 0.0)
+        n = self._n_rates
+        self.advance(phase, anchors, q, v, (1.0,) * n, [v] * n, [v] * n, 0.0)
 
     def _coeffs(self, coeffs: tuple[float, ...], n: int) -> np.ndarray:
-        """The first n Runge-Kutta coefficients as a float array (cached per tableau row)."""
-        key = (coeffs, n)
+        """The first n Runge-Kutta coefficients as a float array, zero-padded to the :meth:`advance` rate count
+        (cached per tableau row)."""
+        key = (coeffs, n, self._n_rates)
         arr = self._coeff_cache.get(key)
         if arr is None:
-            arr = self._coeff_cache[key] = np.array(coeffs[:n], dtype=float)
+            arr = np.zeros(max(n, self._n_rates))
+            arr[:n] = coeffs[:n]
+            self._coeff_cache[key] = arr
         return arr
-
 
 
 

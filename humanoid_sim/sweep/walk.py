@@ -75,7 +75,7 @@ def run_walk(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, 
     hm = model()
     sim = _simulator(engine, hm, sc)
     result = sim.run()
-    summary = summarize_with_audit(result, sc, engine, hm, [p.name for p in sim.traj.phases])
+    summary = summarize_with_audit(result, sc, engine, hm, result.phase_names)
     rms = torque_rms(result.log.arrays()["T"]) if len(result.log) else np.full(len(T_NAMES), np.nan)
     out: dict[str, Any] = {}
     for k, v in summary.items():   # torque_rms_Nm next to torque_peak_Nm

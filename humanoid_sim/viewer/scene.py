@@ -12,12 +12,20 @@ from humanoid_sim.viewer.frames import (
     _HEAD_LEN,
     _HEAD_RADIUS,
     _SHAFT_RADIUS,
-    ARROW_HEX,
+    CAMERA,
     CAMERA_OFFSET,
+    FOLLOW,
+    FOOT_HEX,
+    GROUND_LIFT,
+    OUTSIDE_HEX,
     PHASE_HEX,
-    TOE_HEX,
+    SCENE,
+    SUPPORT_HEX,
+    ZMP_HEX,
+    PlaybackFrames,
     _geometry_kind,
     _homogeneous,
+    label_pose,
     visual_model,
 )
 
@@ -105,8 +113,11 @@ def _ground_grid(lo: np.ndarray, hi: np.ndarray, step: float = 0.1) -> tuple[np.
 
 
 def setup_scene(vis: meshcat.Visualizer, results: dict[str, np.ndarray], hm: "HumanoidModel",
-                traj: "ReferenceTrajectory | None" = None) -> None:
-    """Create every object of the scene (module docstring) and place the camera; poses come from frames."""
+                traj: "ReferenceTrajectory | None" = None, frames: PlaybackFrames | None = None) -> None:
+    """Create every object of the scene (module docstring of :mod:`humanoid_sim.viewer`) and place the camera;
+    poses come from ``frames`` (:func:`~humanoid_sim.viewer.frames.build_frames`), whose first frame is set here
+    so that the scene is posed before any animation plays.  Without ``frames`` the phase labels, soles and
+    feasibility markers are left out."""
     vmodel = visual_model(hm)
     for go in vmodel.geometryObjects:
         kind = _geometry_kind(go)
@@ -123,8 +134,8 @@ def setup_scene(vis: meshcat.Visualizer, results: dict[str, np.ndarray], hm: "Hu
     hips, toe_R, toe_L = _reference_paths(results, traj)
     for k, (name, pts) in enumerate(hips):
         vis[f"reference/hip_{k}"].set_object(_line(pts, PHASE_HEX.get(name, 0x808080)))
-    vis["reference/toe_R"].set_object(_line(toe_R, TOE_HEX["R"]))
-    vis["reference/toe_L"].set_object(_line(toe_L, TOE_HEX["L"]))
+    vis["reference/toe_R"].set_object(_line(toe_R, FOOT_HEX["R"]))
+    vis["reference/toe_L"].set_object(_line(toe_L, FOOT_HEX["L"]))
     vis["actual/hip"].set_object(_line(np.asarray(results["hip_p"]), 0x606060))
 
     allpts = np.concatenate([p for _, p in hips] + [toe_R, toe_L, np.asarray(results["hip_p"])])
@@ -142,33 +153,78 @@ def setup_scene(vis: meshcat.Visualizer, results: dict[str, np.ndarray], hm: "Hu
     for foot in ("R", "L"):
         vis[f"ghost/foot_{foot}"].set_object(_ghost_triad(0.12))
         vis[f"ghost/foot_{foot}/point"].set_object(g.Sphere(0.012),
-                                                   g.MeshBasicMaterial(color=TOE_HEX[foot], opacity=0.6,
+                                                   g.MeshBasicMaterial(color=FOOT_HEX[foot], opacity=0.6,
                                                                       depthTest=False))
         # arrows run up through the leg: drawn in the transparent pass without depth test, so always seen
-        arrow = g.MeshLambertMaterial(color=ARROW_HEX, opacity=0.9, depthTest=False)
+        arrow = g.MeshLambertMaterial(color=FOOT_HEX[foot], opacity=0.85, depthTest=False)
         vis[f"grf/{foot}/shaft"].set_object(g.Cylinder(1.0, _SHAFT_RADIUS), arrow)
         vis[f"grf/{foot}/head"].set_object(g.Cylinder(_HEAD_LEN, radiusTop=0.0, radiusBottom=_HEAD_RADIUS), arrow)
         vis[f"grf/{foot}/base"].set_object(g.Sphere(0.015), arrow)
 
-    names = [str(s) for s in results["phase_names"]]
-    for k in np.unique(np.asarray(results["phase"], dtype=int)):
-        name = names[k]
-        vis[f"phase/{k}/text"].set_object(
-            _Plane(0.9, 0.9), g.MeshBasicMaterial(map=_TextTexture(f"{name} {k + 1}/{len(names)}", 44),
-                                                  transparent=True, depthWrite=False))
-        vis[f"phase/{k}/bar"].set_object(_Plane(0.9, 0.09), g.MeshBasicMaterial(
-            color=PHASE_HEX.get(name, 0x808080), opacity=0.45))
-        vis[f"phase/{k}/bar"].set_transform(_homogeneous(np.eye(3), [0.0, 0.03, -0.002]))
+    if frames is not None:
+        _feasibility(vis, frames)
+        _labels(vis, frames)
 
     # a neutral grey backdrop (meshcat's default sky-blue gradient hides the blue left side)
     vis["/Background"].set_property("top_color", [0.96, 0.96, 0.96])  # RGB in [0, 1]
     vis["/Background"].set_property("bottom_color", [0.70, 0.70, 0.70])
-    # camera: orbit target at the middle of the walk, 0.9 m up; meshcat's camera frame is y-up
-    target = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, 0.9])
-    vis["/Cameras/default"].set_transform(_homogeneous(np.eye(3), target))
+    # camera: looks at the world origin, where the scene node puts the robot (frames.SCENE); its frame is y-up
+    if frames is None or not len(frames):  # no animation: centre the walk instead
+        target = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, 0.9])
+        vis[SCENE].set_transform(_homogeneous(np.eye(3), -target))
+    vis[CAMERA].set_transform(np.eye(4))
     off = CAMERA_OFFSET
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [float(off[0]), float(off[2]),
-                                                                       float(-off[1])])
+    vis[f"{CAMERA}/rotated/<object>"].set_property("position", [float(off[0]), float(off[2]), float(-off[1])])
+    if frames is not None and len(frames):
+        pose_frame(vis, frames, 0)
 
 
-# ============================================================================================ recording
+def _feasibility(vis: meshcat.Visualizer, fr: PlaybackFrames) -> None:
+    """Soles and support polygon of each phase (``support/<k>``), CoP and ZMP markers (``feasibility/...``): drawn
+    over the robot (no depth test), since they lie under the feet."""
+    for k, outlines in fr.supports.items():
+        for who, P in outlines.items():
+            pts = np.column_stack([P[:-1], np.full(len(P) - 1, GROUND_LIFT)])
+            colour = SUPPORT_HEX if who == "support" else FOOT_HEX[who]
+            vis[f"support/{k}/{who}"].set_object(g.LineLoop(
+                g.PointsGeometry(np.asarray(pts, dtype=np.float32).T),
+                g.LineBasicMaterial(color=colour, transparent=True, depthTest=False)))
+    for foot in ("R", "L"):
+        vis[f"feasibility/cop_{foot}/inside"].set_object(
+            g.Sphere(0.014), g.MeshBasicMaterial(color=FOOT_HEX[foot], transparent=True, depthTest=False))
+        vis[f"feasibility/cop_{foot}/outside"].set_object(
+            g.Sphere(0.018), g.MeshBasicMaterial(color=OUTSIDE_HEX, transparent=True, depthTest=False))
+    disc = _homogeneous(np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]), np.zeros(3))  # cylinder axis y -> z
+    for state, colour in (("inside", ZMP_HEX), ("outside", OUTSIDE_HEX)):
+        node = vis[f"feasibility/zmp/{state}"]
+        node.set_object(g.Cylinder(0.004, 0.03), g.MeshBasicMaterial(color=colour, transparent=True, opacity=0.8,
+                                                                    depthTest=False))
+        node.set_transform(disc)
+
+
+def _labels(vis: meshcat.Visualizer, fr: PlaybackFrames) -> None:
+    """One label per phase shown (``FOLLOW/phase/<k>``): the phase name and number on a panel above the robot, on
+    a bar of the phase colour."""
+    pose = label_pose()
+    for k in np.unique(fr.phase):
+        name = fr.phase_names[k]
+        node = vis[f"{FOLLOW}/phase/{k}"]
+        node.set_transform(pose)
+        node["panel"].set_object(_Plane(0.72, 0.2), g.MeshBasicMaterial(color=0xFFFFFF, opacity=0.8,
+                                                                       transparent=True))
+        node["panel"].set_transform(_homogeneous(np.eye(3), [0.0, 0.0, -0.002]))
+        node["text"].set_object(_Plane(0.72, 0.72), g.MeshBasicMaterial(
+            map=_TextTexture(f"{name} {k + 1}/{len(fr.phase_names)}", 40), transparent=True, depthWrite=False))
+        node["bar"].set_object(_Plane(0.72, 0.06), g.MeshBasicMaterial(color=PHASE_HEX.get(name, 0x808080)))
+        node["bar"].set_transform(_homogeneous(np.eye(3), [0.0, -0.13, 0.0]))
+
+
+def pose_frame(vis: meshcat.Visualizer, fr: PlaybackFrames, i: int) -> None:
+    """Set every animated node to its pose, scale and visibility of frame ``i`` (static commands)."""
+    for path, T in fr.transforms.items():
+        M = T[i]
+        if path in fr.scales:
+            M = M @ np.diag(np.append(fr.scales[path][i], 1.0))
+        vis[path].set_transform(M)
+    for path, v in fr.visible.items():
+        vis[path].set_property("visible", bool(v[i]))

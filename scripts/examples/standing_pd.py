@@ -61,7 +61,7 @@ def main() -> None:
     drift = np.linalg.norm(hip - hip[0], axis=1).max()
     print(f"{result.reason}; hip drift max {drift * 1000:.3g} mm over {result.sim_time:.2f} s")
     args.out.mkdir(parents=True, exist_ok=True)
-    result.log.save(args.out / "results.npz", [ph.name for ph in sim.traj.phases])
+    result.log.save(args.out / "results.npz", result.phase_names)
     from humanoid_sim.viewer import write_playback
 
     write_playback(args.out / "results.npz", args.out / "playback.html", hm=hm, traj=sim.traj)

@@ -1,0 +1,214 @@
+"""Fill numba's disk cache of the compiled kernel quickly: the first run after an install (or after an edit of
+``kernel/compiled.py``) builds it in parallel child processes instead of compiling ~50 s in the walk's own process.
+
+Where the time of a cold compile went (measured on the 2-core development machine, sim 1, numba 0.68):
+
+- ~50 s in all, of which ~11 s is numba's own front end (typing, lowering) and ~38 s LLVM: function passes (~5 s),
+  the whole-module optimisation of every compiled function's library (~16 s) and machine code (~15 s);
+- numba gives every ``@njit`` function its own library and links each callee's code into its caller's library, where
+  the whole-module optimisation runs again: a helper five calls deep is optimised five times.  Only the entry points
+  (:data:`ENTRY_POINTS`, the functions Python calls) ever run their own copy.
+
+So the children here (``python -m humanoid_sim.kernel.build PART``) skip the whole-module optimisation of every
+library that is not an entry point; the entry points are optimised in full, with every callee linked in, so the code
+that runs is optimised as before.  Optimisation levels and inlining decide which instructions evaluate a formula, not
+its IEEE arithmetic (numba's code is compiled without fast-math, so LLVM neither reassociates nor contracts): the walk's
+numbers are bit for bit those of a kernel compiled the ordinary way (``tests/test_kernel.py`` checks a whole walk).
+
+The entry points are split over :data:`PARTS` (single-support stage; double-support stage, projection and
+integration), one child each, so both cores work.  The parent process then loads the cache (~0.3 s).  If numba lacks
+the internals used to skip the optimisation, the children compile the ordinary way (slower, same code).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+ENTRY_POINTS = ("ssp_stage", "dsp_stage", "project_on_support", "advance_on_support")
+"""The compiled functions a walk calls from Python (``StageKernel.stage`` / ``project`` / ``advance``)."""
+PARTS = ("ssp", "dsp")
+"""Child processes of :func:`build`: ``ssp`` compiles ``ssp_stage``; ``dsp`` the rest of :data:`ENTRY_POINTS`."""
+NUMBA_OPT = "2"
+"""LLVM optimisation level of the children (numba's default is 3; level 2 runs the walk as fast, measured)."""
+
+
+class KernelBuildError(RuntimeError):
+    """A child process failed to compile its part of the kernel (the message carries its stderr)."""
+
+
+def _dispatchers() -> dict[str, object]:
+    from humanoid_sim.kernel import compiled
+
+    return {name: getattr(compiled, name) for name in ENTRY_POINTS}
+
+
+def cache_ready() -> bool:
+    """Whether numba's disk cache holds a current compilation of every entry point (its index matches the source
+    file of ``compiled.py``); False when unsure."""
+    try:
+        for disp in _dispatchers().values():
+            cache = getattr(disp, "_cache", None)
+            index = cache._cache_file._load_index()  # {} when missing or stale (source stamp differs)
+            if not index:
+                return False
+        return True
+    except Exception:  # pragma: no cover - numba internals changed: fall back to the file heuristic
+        from humanoid_sim.kernel import cache_present
+
+        return cache_present()
+
+
+class KernelBuild:
+    """A running build: one child process per part (``python -m humanoid_sim.kernel.build PART SCENARIO``).
+
+    ``start()`` launches them, ``wait()`` waits (raising :class:`KernelBuildError` when one fails), ``stop()`` kills
+    any still running (idempotent; use it in a ``finally``).  ``scenario``: a scenario YAML whose objects give the
+    argument types."""
+
+    def __init__(self, scenario: str | Path, parts: tuple[str, ...] = PARTS, timeout: float = 600.0) -> None:
+        self.scenario = Path(scenario)
+        self.parts = tuple(parts)
+        self.timeout = timeout
+        self.procs: dict[str, subprocess.Popen] = {}
+        self._err: dict[str, Any] = {}
+        self.started = 0.0
+
+    def start(self) -> "KernelBuild":
+        env = dict(os.environ)
+        root = str(Path(__file__).resolve().parents[2])
+        env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        env.setdefault("NUMBA_OPT", NUMBA_OPT)
+        self.started = time.monotonic()
+        for part in self.parts:
+            # stderr to a file, not a pipe: a child writing more than a pipe holds would block
+            self._err[part] = tempfile.TemporaryFile()
+            self.procs[part] = subprocess.Popen(
+                [sys.executable, "-m", "humanoid_sim.kernel.build", part, str(self.scenario)],
+                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=self._err[part], env=env)
+        return self
+
+    def wait(self, progress: Callable[[str, float], None] | None = None,
+             tick: Callable[[], None] | None = None) -> float:
+        """Wait for every part; ``progress(part, elapsed_s)`` when one finishes, ``tick()`` every ~0.25 s.  Returns
+        the wall time since :meth:`start`, s."""
+        failed: list[str] = []
+        pending = dict(self.procs)
+        last = 0.0
+        while pending:
+            for part, proc in list(pending.items()):
+                if proc.poll() is None:
+                    continue
+                del pending[part]
+                self._err[part].seek(0)
+                err = self._err[part].read().decode("utf-8", "replace")
+                if proc.returncode != 0:
+                    failed.append(f"part {part} exited with status {proc.returncode}: {err.strip()[-1500:]}")
+                elif progress is not None:
+                    progress(part, time.monotonic() - self.started)
+            if not pending:
+                break
+            now = time.monotonic()
+            if now - self.started > self.timeout:
+                self.stop()
+                raise KernelBuildError(f"kernel build: parts {sorted(pending)} did not finish within {self.timeout} s")
+            if tick is not None and now - last > 0.25:
+                tick()
+                last = now
+            time.sleep(0.05)
+        if failed:
+            raise KernelBuildError("kernel build failed: " + "; ".join(failed))
+        return time.monotonic() - self.started
+
+    def stop(self) -> None:
+        """Kill the parts still running and release their pipes (idempotent)."""
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        for fh in self._err.values():
+            fh.close()
+
+
+def build(scenario: str | Path, parts: tuple[str, ...] = PARTS, progress: Callable[[str, float], None] | None = None,
+          timeout: float = 600.0) -> float:
+    """Compile the kernel's entry points into numba's disk cache (one child process per part, in parallel) and
+    wait for them; returns the wall time, s.  Raises :class:`KernelBuildError` when a child fails."""
+    running = KernelBuild(scenario, parts, timeout).start()
+    try:
+        return running.wait(progress)
+    finally:
+        running.stop()
+
+
+def _skip_callee_optimisation() -> bool:
+    """In this (child) process, run numba's whole-module optimisation only for the libraries of the entry points.
+    Returns whether the numba internals needed were found."""
+    try:
+        from numba.core import codegen
+    except ImportError:  # pragma: no cover
+        return False
+    lib = getattr(codegen, "CPUCodeLibrary", None)
+    original = getattr(lib, "_optimize_final_module", None)
+    if original is None:  # pragma: no cover - numba internals changed
+        return False
+
+    def optimize_final_module(self) -> None:
+        if self.name in ENTRY_POINTS:
+            original(self)
+
+    lib._optimize_final_module = optimize_final_module
+    return True
+
+
+def _compile_part(part: str, scenario: Path) -> None:
+    """Call this part's entry points once on representative arguments of ``scenario`` (as a walk calls them), so
+    that numba compiles them and writes its cache."""
+    import numpy as np
+    import pinocchio as pin
+
+    from humanoid_sim.actuators import Actuators
+    from humanoid_sim.command import CommandAccelerations
+    from humanoid_sim.contact.constraints import record_anchors
+    from humanoid_sim.initial import initial_configuration
+    from humanoid_sim.integrator import RungeKutta
+    from humanoid_sim.kernel.stage import StageKernel
+    from humanoid_sim.model import load_model
+    from humanoid_sim.phases import Phase
+    from humanoid_sim.scenario import load_scenario
+    from humanoid_sim.trajectory import ReferenceTrajectory
+
+    hm = load_model()
+    sc = load_scenario(scenario)
+    q = initial_configuration(hm, sc.path)
+    cmd = CommandAccelerations(hm, sc.controller, theta0=hm.theta_from_q(q))
+    kern = StageKernel(hm, cmd, Actuators(hm))
+    traj = ReferenceTrajectory(sc.path)
+    v = np.zeros(hm.model.nv)
+    data = hm.model.createData()
+    pin.computeJointJacobiansTimeVariation(hm.model, data, q, v)
+    pin.crba(hm.model, data, q)
+    pin.nonLinearEffects(hm.model, data, q, v)
+    if part == "ssp":
+        phases = [Phase.LFFSSP]
+    elif part == "dsp":
+        phases = [Phase.RFFDSP]
+        kern.support.warm_up(q, len(RungeKutta(hm.model, sc.simulation.method).tab.c))
+    else:
+        raise SystemExit(f"kernel build: unknown part {part!r} (expected one of {PARTS})")
+    for phase in phases:
+        k = next(i for i, ph in enumerate(traj.phases) if ph.name == phase.value)
+        table = traj.dsp_table(k) if phase.is_double_support else traj.ssp_table(k)
+        kern.stage(phase, record_anchors(hm.model, q, phase.contacts), q, v, data, table, traj.phases[k].t_start)
+
+
+if __name__ == "__main__":  # pragma: no cover - the child process of build()
+    if len(sys.argv) != 3:
+        sys.exit("usage: python -m humanoid_sim.kernel.build PART SCENARIO  (PART: ssp or dsp)")
+    _skip_callee_optimisation()
+    _compile_part(sys.argv[1], Path(sys.argv[2]))
