@@ -165,10 +165,18 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
     finally:
         if running is not None:
             running.stop()
+    from humanoid_sim.engines.oracle import ThesisWalkError
+    from humanoid_sim.gait import GaitError
+
+    if scenario.gait.is_zmp and not args.quiet:
+        print("walk.py: planning the zmp_preview gait (ZMP preview control and its multibody correction: a few "
+              "seconds per 10 s of walk)", file=sys.stderr)
     try:
         sim = Simulator(hm, scenario, compiled=False if args.no_kernel else None, engine=args.engine)
-    except ControllerLoadError as exc:
+    except (ControllerLoadError, ThesisWalkError) as exc:
         return _fail_input(f"{scenario.source}: {exc}")
+    except GaitError as exc:   # the planner cannot make this path's zmp_preview gait
+        return _fail_input(f"{scenario.source}: gait.hip_reference: zmp_preview cannot plan this walk: {exc}")
     t_nominal = sim.traj.phases[-1].t_end
     bar = None
     progress = None

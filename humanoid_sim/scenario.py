@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -34,7 +34,7 @@ from humanoid_sim.command import ControllerParamError, ControllerParams
 from humanoid_sim.trajectory import PathParamError, PathParams
 
 SECTIONS = ("name", "description", "path", "controller", "reset", "simulation", "phase_switch", "contact",
-            "controller_class")
+            "controller_class", "gait")
 REQUIRED = ("path", "controller", "reset")
 RESET_KEYS = ("Wadj_qdot_LFFSSP_to_RFFDSP", "Wadj_qdot_RFFSSP_to_LFFDSP")
 METHODS = ("ode3", "rk4", "euler")
@@ -76,6 +76,33 @@ class ContactSettings:
     friction_coefficient: float = 0.8  # Coulomb coefficient mu of the cone |f_t| <= mu f_n (assumed, not in thesis)
 
 
+HIP_REFERENCES = ("thesis", "zmp_preview")
+ZMP_TRANSFERS = ("smoothstep", "linear")
+
+
+@dataclass(frozen=True)
+class GaitSettings:
+    """Which hip reference the walk follows (the feet, footholds and timing are chapter 3's in both gaits).
+
+    ``thesis``: chapter 3's hip (constant height, no lateral sway), unchanged.  ``zmp_preview``: the Body-17 CoM path
+    planned by ZMP preview control (Kajita et al. 2003, ``humanoid_sim.gait``): a standing ``lead_in_s`` double
+    support first (the weight shift onto the first stance foot), ``horizon_s`` of preview, ``passes`` multibody
+    corrections of the cart-table plan, planned on a ``sample_s`` grid; the ZMP reference moves between the sole
+    centres with a ``transfer`` profile.  In this gait a double support lasts its planned duration and touchdown
+    uses the inelastic impact law unless ``simulation.impact_law`` says otherwise."""
+
+    hip_reference: str = "thesis"
+    horizon_s: float = 1.6
+    lead_in_s: float = 1.0
+    passes: int = 2
+    sample_s: float = 0.01
+    transfer: str = "smoothstep"
+
+    @property
+    def is_zmp(self) -> bool:
+        return self.hip_reference == "zmp_preview"
+
+
 @dataclass(frozen=True)
 class Scenario:
     """A validated scenario."""
@@ -90,6 +117,7 @@ class Scenario:
     contact: ContactSettings = field(default_factory=ContactSettings)
     source: str = "<dict>"
     controller_class: str | None = None   # 'package.module:ClassName' of a user's controller; None = the thesis's
+    gait: GaitSettings = field(default_factory=GaitSettings)
 
 
 # --------------------------------------------------------------------------------------------- value ranges
@@ -382,6 +410,15 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
         "dsp_overtime_fraction": Num("a fraction", 0.0, 10.0)})
     ct = _dataclass_section(src, "contact", doc.get("contact"), ContactSettings, {
         "friction_coefficient": Num("a friction coefficient", 0.0, 5.0, lo_open=True)})
+    gait = _dataclass_section(src, "gait", doc.get("gait"), GaitSettings, {
+        "hip_reference": HIP_REFERENCES, "horizon_s": Num("a preview horizon in s", 0.05, 5.0),
+        "lead_in_s": Num("a standing double support in s", 0.2, 5.0),
+        "passes": Num("a count of multibody corrections", choices=(0, 1, 2, 3, 4, 5)),
+        "sample_s": Num("a planning step in s", 0.002, 0.05), "transfer": ZMP_TRANSFERS})
+    gait = replace(gait, passes=int(gait.passes))
+    sim_raw = doc.get("simulation")
+    if gait.is_zmp and not (isinstance(sim_raw, dict) and "impact_law" in sim_raw):
+        sim = replace(sim, impact_law="inelastic")   # the zmp gait's default: no momentum from nowhere
     cc = doc.get("controller_class")
     if cc is not None:
         from humanoid_sim.controllers.loading import DOTTED
@@ -390,7 +427,7 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
             raise ScenarioError(f"{src}: controller_class: expected 'package.module:ClassName' (a controller class "
                                 f"importable from PYTHONPATH), got {_show(cc)}")
     return Scenario(name=name, description=desc, path=path, controller=controller, W_adj=W_adj, simulation=sim,
-                    switch=sw, contact=ct, source=source, controller_class=cc)
+                    switch=sw, contact=ct, source=source, controller_class=cc, gait=gait)
 
 
 class _StrictSafeLoader(yaml.SafeLoader):

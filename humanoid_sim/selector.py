@@ -61,6 +61,9 @@ class PhaseSelector:
         self.targets = traj.phase_targets(0)
         self.toe_start = toe_start
         self.hold = False
+        self.dsp_on_schedule = bool(getattr(traj, "dsp_on_schedule", False))
+        """True: a double support ends at its planned duration (the trajectory asks for it), else section 6.1.1's
+        hip-distance / overtime rule."""
 
     def hold_in(self, phase: Phase) -> None:
         """Stay in ``phase`` for the whole run (a standing test): no phase switch and no overtime check."""
@@ -122,6 +125,8 @@ class PhaseSelector:
         if info.swing_foot is not None:
             return ssp_should_end(swing_toe_p, self.toe_start, self.targets.swing_toe_end, self.thresholds)
         elapsed = t - self.records[-1].t_start
+        if self.dsp_on_schedule:  # the zmp gait: the ZMP moves across during the whole planned double support
+            return elapsed >= info.duration - 0.5 * self.settings.step_s
         return dsp_should_end(hip_p, self.targets.hip_p_end, elapsed, info.duration, self.thresholds)
 
     def record_touchdown(self, toe_p: np.ndarray, R_toe: np.ndarray) -> str:

@@ -173,6 +173,9 @@ class OracleEngine:
 
     def __init__(self, hm: HumanoidModel, scenario: Scenario, traj: ReferenceTrajectory,
                  engine: ThesisEngine | None = None) -> None:
+        if scenario.gait.is_zmp:
+            raise ThesisWalkError("gait.hip_reference = 'zmp_preview': the thesis engine runs only chapter 3's gait "
+                                  "('thesis'); run the zmp_preview gait on the pinocchio engine")
         if scenario.simulation.impact_law != "thesis":
             raise ThesisWalkError(f"simulation.impact_law = {scenario.simulation.impact_law!r}: the thesis engine "
                                   "implements only the thesis's touchdown law (eqs. 4.97/4.100, 'thesis')")

@@ -31,6 +31,8 @@ import math
 
 import numpy as np
 
+from humanoid_sim.trajectory.generator import DSP_TABLE, SSP_TABLE
+
 try:
     from numba import njit as _numba_njit
 except ImportError:  # pragma: no cover - the simulator then never calls this module
@@ -52,6 +54,10 @@ numba freezes module constants into the compiled code, so they must live in this
 F_PC17, F_O17, F_TPR, F_TPL, F_O1, F_O2, F_O3, F_O4 = range(8)
 """Rows of the frame arrays: the controller's task frames in ``command.TASK_FRAMES`` order."""
 LOG_SIZE = 45
+SSP_TABLE_LEN = len(SSP_TABLE)
+"""Chapter 3's single-support table length; a longer table carries the zmp gait's hip grid after it."""
+DSP_TABLE_LEN = len(DSP_TABLE)
+"""Chapter 3's double-support table length (as :data:`SSP_TABLE_LEN`)."""
 """Floats of the per-stage log vector (layout in ``stage.StageOutput``)."""
 
 
@@ -407,6 +413,28 @@ def _rz_into(R: np.ndarray, yaw: float) -> None:
 
 
 @njit
+def _grid_hip(tab: np.ndarray, o: int, t: float, hip_z: float, p: np.ndarray, v: np.ndarray) -> None:
+    """Body-17 CoM position and linear velocity at global time t from the hip grid appended at ``tab[o:]`` (the zmp
+    gait: ``gait.zmp_walk.GRID_HEADER``): cubic Hermite of (position, velocity) (``gait.zmp_walk.hermite``)."""
+    t0, T, n = tab[o], tab[o + 1], int(tab[o + 2])
+    u = (t - t0) / T
+    i = min(max(int(math.floor(u)), 0), n - 2)
+    s = min(max(u - i, 0.0), 1.0)
+    s2 = s * s
+    s3 = s2 * s
+    h00, h10, h01, h11 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2
+    d00, d10, d01, d11 = 6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s
+    a = o + 3 + 4 * i
+    b = a + 4
+    for j in range(2):
+        p0, p1, m0, m1 = tab[a + j], tab[b + j], T * tab[a + 2 + j], T * tab[b + 2 + j]
+        p[j] = h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1
+        v[j] = (d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1) / T
+    p[2] = hip_z
+    v[2] = 0.0
+
+
+@njit
 def ssp_references(tab: np.ndarray, t_a: float, t_b: float, p_a: np.ndarray, v_a: np.ndarray, R_a: np.ndarray,
                    p_b: np.ndarray, v_b: np.ndarray, R_b: np.ndarray) -> None:
     """The controller's references in a single-support phase from its ``ReferenceTrajectory.ssp_table``: the hip
@@ -418,8 +446,11 @@ def ssp_references(tab: np.ndarray, t_a: float, t_b: float, p_a: np.ndarray, v_a
     th, thd = _cubic(tab, 8, tc)
     phi = theta_cs + s * th
     sp, cp = math.sin(phi), math.cos(phi)
-    p_a[0], p_a[1], p_a[2] = Ox + s * Rad * sp, Oy - s * Rad * cp, hip_z
-    v_a[0], v_a[1], v_a[2] = Rad * thd * cp, Rad * thd * sp, 0.0
+    if tab.size > SSP_TABLE_LEN:  # the zmp gait: the hip position from its planned grid, the yaw chapter 3's
+        _grid_hip(tab, SSP_TABLE_LEN, t0 + tc, hip_z, p_a, v_a)
+    else:
+        p_a[0], p_a[1], p_a[2] = Ox + s * Rad * sp, Oy - s * Rad * cp, hip_z
+        v_a[0], v_a[1], v_a[2] = Rad * thd * cp, Rad * thd * sp, 0.0
     v_a[3], v_a[4], v_a[5] = 0.0, 0.0, s * thd
     _rz_into(R_a, phi)
     tc = min(max(t_b - t0, 0.0), dur)
@@ -953,8 +984,11 @@ def dsp_references(tab: np.ndarray, t_a: float, p_a: np.ndarray, v_a: np.ndarray
     phi = theta_cs + s * th
     yaw, yawd = _cubic(tab, 12, tc)
     sp, cp = math.sin(phi), math.cos(phi)
-    p_a[0], p_a[1], p_a[2] = Ox + s * Rad * sp, Oy - s * Rad * cp, hip_z
-    v_a[0], v_a[1], v_a[2] = Rad * thd * cp, Rad * thd * sp, 0.0
+    if tab.size > DSP_TABLE_LEN:  # the zmp gait: the hip position from its planned grid, the yaw chapter 3's
+        _grid_hip(tab, DSP_TABLE_LEN, t0 + tc, hip_z, p_a, v_a)
+    else:
+        p_a[0], p_a[1], p_a[2] = Ox + s * Rad * sp, Oy - s * Rad * cp, hip_z
+        v_a[0], v_a[1], v_a[2] = Rad * thd * cp, Rad * thd * sp, 0.0
     v_a[3], v_a[4], v_a[5] = 0.0, 0.0, yawd
     _rz_into(R_a, yaw)
 

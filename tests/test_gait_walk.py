@@ -1,0 +1,201 @@
+"""The zmp_preview gait as the loop runs it (issue #13): the ``gait:`` scenario section, the trajectory wrapper
+(lead-in, shifted thesis phases, planned hip), its compiled twin in the kernel, the double-support rule, and a whole
+walk.  The planner's own tests are tests/test_gait_{preview,zmp_reference,posture,multibody}.py."""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from humanoid_sim.audit import audit_results
+from humanoid_sim.gait.zmp_walk import ZmpPreviewTrajectory, hermite
+from humanoid_sim.kernel import AVAILABLE as KERNEL
+from humanoid_sim.scenario import ScenarioError, parse_scenario
+from humanoid_sim.simulate import Simulator
+from humanoid_sim.summary import summarize
+
+ROOT = Path(__file__).resolve().parents[1]
+SIM3 = yaml.safe_load((ROOT / "scripts" / "params" / "sim3.yaml").read_text())
+SIM1 = yaml.safe_load((ROOT / "scripts" / "params" / "sim1.yaml").read_text())
+
+
+def with_gait(doc: dict, **gait) -> dict:
+    d = copy.deepcopy(doc)
+    d["gait"] = {"hip_reference": "zmp_preview", **gait}
+    return d
+
+
+# ------------------------------------------------------------------------------------------------ scenario
+def test_gait_section_defaults_and_impact_law():
+    thesis = parse_scenario(copy.deepcopy(SIM3), "sim3")
+    assert thesis.gait.hip_reference == "thesis" and thesis.simulation.impact_law == "thesis"
+    zmp = parse_scenario(with_gait(SIM3), "sim3")
+    assert zmp.gait.is_zmp and zmp.gait.horizon_s == 1.6 and zmp.gait.lead_in_s == 1.0 and zmp.gait.passes == 2
+    assert zmp.simulation.impact_law == "inelastic"       # the zmp gait's default
+    d = with_gait(SIM3)
+    d.setdefault("simulation", {})["impact_law"] = "thesis"
+    assert parse_scenario(d, "x").simulation.impact_law == "thesis"   # an explicit choice is kept
+
+
+@pytest.mark.parametrize("gait, message", [
+    ({"hip_reference": "zmp"}, "gait.hip_reference: expected one of thesis, zmp_preview, got 'zmp'"),
+    ({"hip_reference": "zmp_preview", "horizon_s": 0}, "gait.horizon_s: expected a preview horizon in s"),
+    ({"hip_reference": "zmp_preview", "passes": 1.5}, "gait.passes: expected a count of multibody corrections"),
+    ({"hip_reference": "zmp_preview", "lead": 1}, "gait"),
+])
+def test_gait_section_bad_values_are_named(gait, message):
+    d = copy.deepcopy(SIM3)
+    d["gait"] = gait
+    with pytest.raises(ScenarioError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        parse_scenario(d, "x.yaml")
+
+
+# ------------------------------------------------------------------------------------------------ Hermite
+def test_hermite_reproduces_a_cubic_exactly():
+    """A cubic Hermite interpolant is exact for cubic polynomials: sample one (and its exact derivative) on a grid and
+    compare between the grid points, position, velocity and acceleration (1e-12: round-off of O(1) numbers)."""
+    c = np.array([[0.7, -0.3], [-1.1, 0.5], [0.4, 2.0], [0.1, -0.2]])   # x(t) = c0 t^3 + c1 t^2 + c2 t + c3
+
+    def x(t):
+        return c[0] * t ** 3 + c[1] * t ** 2 + c[2] * t + c[3]
+
+    def xd(t):
+        return 3 * c[0] * t ** 2 + 2 * c[1] * t + c[2]
+
+    T = 0.05
+    grid = np.arange(0, 21) * T
+    xy, v = np.array([x(t) for t in grid]), np.array([xd(t) for t in grid])
+    for t in np.linspace(0.0, 1.0, 37):
+        p, pv, pa = hermite(float(t), 0.0, T, xy, v)
+        np.testing.assert_allclose(p, x(t), atol=1e-12)
+        np.testing.assert_allclose(pv, xd(t), atol=1e-12)
+        np.testing.assert_allclose(pa, 6 * c[0] * t + 2 * c[1], atol=1e-9)   # /T^2 amplifies round-off 400 x
+
+
+# ------------------------------------------------------------------------------------------------ wrapper
+@pytest.fixture(scope="module")
+def zmp_sim3(hm):
+    sc = parse_scenario(with_gait(SIM3), "sim3_zmp")
+    return sc, Simulator(hm, sc, compiled=False)
+
+
+def test_schedule_is_a_lead_in_then_the_thesis_phases_shifted(zmp_sim3):
+    sc, sim = zmp_sim3
+    tr = sim.traj
+    assert isinstance(tr, ZmpPreviewTrajectory)
+    inner = tr.inner
+    assert tr.phases[0].name == "LFFDSP" and inner.phases[0].name == "LFFSSP"   # LFFDSP precedes LFFSSP
+    assert tr.phases[0].t_start == 0.0 and tr.phases[0].t_end == sc.gait.lead_in_s
+    for a, b in zip(tr.phases[1:], inner.phases):
+        assert (a.name, a.index, a.duration) == (b.name, b.index + 1, b.duration)
+        assert a.t_start == pytest.approx(b.t_start + sc.gait.lead_in_s, abs=1e-12)
+    # the feet are the thesis's, later by the lead-in
+    for t in (0.3, 1.9, 3.7):
+        a, b = tr.sample_global(t + sc.gait.lead_in_s), inner.sample_global(t)
+        np.testing.assert_allclose(a.toe_R_p, b.toe_R_p, atol=1e-12)
+        np.testing.assert_allclose(a.foot_L_R, b.foot_L_R, atol=1e-12)
+
+
+def test_hip_reference_velocity_is_the_derivative_of_its_position(zmp_sim3):
+    """Central differences of the planned hip position (h = 1e-5 s: truncation ~h^2 x jerk ~1e-9 m/s, round-off
+    ~1e-16 / 1e-5 = 1e-11) against the reported velocity, inside phases (away from the clamped ends)."""
+    _, sim = zmp_sim3
+    tr = sim.traj
+    h = 1e-5
+    for k in (0, 1, 2, 5):
+        ph = tr.phases[k]
+        for f in (0.2, 0.5, 0.8):
+            t = ph.t_start + f * ph.duration
+            p, v6, _ = tr.hip_reference(k, t)
+            fd = (tr.hip_reference(k, t + h)[0] - tr.hip_reference(k, t - h)[0]) / (2 * h)
+            np.testing.assert_allclose(v6[:3], fd, atol=1e-6)
+
+
+def test_lead_in_yaw_meets_the_thesis_yaw_and_rate(zmp_sim3):
+    """The lead-in's yaw cubic ends where chapter 3's first single support starts, at its rate (1e-12: the same
+    formulas, evaluated at the boundary)."""
+    sc, sim = zmp_sim3
+    tr = sim.traj
+    _, v_end, R_end = tr.hip_reference(0, tr.phases[0].t_end)
+    _, v_start, R_start = tr.hip_reference(1, tr.phases[1].t_start)
+    np.testing.assert_allclose(R_end, R_start, atol=1e-12)
+    assert v_end[5] == pytest.approx(v_start[5], abs=1e-12)
+    yaw0 = math.atan2(sim.q0[3:7][2], sim.q0[3:7][3]) * 2   # the initial base yaw (quaternion x y z w, about z)
+    R0 = tr.hip_reference(0, 0.0)[2]
+    assert math.atan2(R0[1, 0], R0[0, 0]) == pytest.approx(math.remainder(yaw0, 2 * math.pi), abs=1e-9)
+
+
+def test_plan_tracks_its_zmp_reference(zmp_sim3):
+    """The planner's report: the cart-table ZMP within 10 mm of its reference in single support (issue #13), the
+    multibody ZMP after the corrections within 5 mm RMS (measured 2.9 mm for sim 3)."""
+    info = zmp_sim3[1].traj.plan.info
+    assert info["cart_zmp_error_ssp_max_m"] < 0.010
+    assert info["multibody_zmp_error_ssp_rms_m"] < 0.005
+
+
+@pytest.mark.skipif(not KERNEL, reason="numba is not installed: there is no compiled kernel to compare")
+def test_compiled_references_equal_the_wrapper(zmp_sim3):
+    """The kernel's reference evaluation of the zmp gait's tables (hip from the grid, yaw chapter 3's) against the
+    wrapper's Python queries, in every phase kind, the lead-in included (1e-12 m: the same formulas; the times
+    differ by the shift's round-off)."""
+    from humanoid_sim.kernel.compiled import dsp_references, ssp_references
+
+    _, sim = zmp_sim3
+    tr = sim.traj
+    for k in (0, 1, 2, 3, 4, 9):
+        ph = tr.phases[k]
+        for f in (-0.1, 0.0, 0.37, 1.0, 1.2):   # beyond the window: both clamp
+            t = ph.t_start + f * ph.duration
+            pa, va, Ra = np.empty(3), np.empty(6), np.empty((3, 3))
+            p_ref, v_ref, R_ref = tr.hip_reference(k, t)
+            if ph.is_ssp:
+                pb, vb, Rb = np.empty(3), np.empty(6), np.empty((3, 3))
+                ssp_references(tr.ssp_table(k), t, t, pa, va, Ra, pb, vb, Rb)
+                toe = tr.toe_reference(k, t, ph.swing_foot)
+                np.testing.assert_allclose(pb, toe[0], atol=1e-12)
+                np.testing.assert_allclose(vb, toe[1], atol=1e-12)
+            else:
+                dsp_references(tr.dsp_table(k), t, pa, va, Ra)
+            np.testing.assert_allclose(pa, p_ref, atol=1e-12)
+            np.testing.assert_allclose(va, v_ref, atol=1e-12)
+            np.testing.assert_allclose(Ra, R_ref, atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------------ a walk
+@pytest.fixture(scope="module")
+def zmp_walk(zmp_sim3):
+    sc, sim = zmp_sim3
+    return sc, sim, sim.run()
+
+
+def test_walk_completes_and_double_supports_last_their_planned_duration(zmp_walk):
+    sc, sim, res = zmp_walk
+    assert res.completed, res.reason
+    h = sc.simulation.step_s
+    for rec in res.phases:
+        if rec.name.endswith("DSP"):
+            nominal = rec.nominal_end - rec.nominal_start
+            # the selector ends it at the first step boundary at or past the planned duration minus half a step
+            assert abs((rec.t_end - rec.t_start) - nominal) <= 0.5 * h + 1e-9, rec
+
+
+def test_zmp_gait_moves_the_weight_over_the_stance_foot(hm, zmp_walk):
+    """The point of the gait, judged by the contact audit on the welded-foot model.  The thesis gait has its ZMP
+    outside the support polygon in 96-100 % of steps (issue #13; sim 3: 100 %) and its ankle-roll torques T3/T4
+    at the 150 N m limit.  This gait, as of this commit: 31 % outside (concentrated in the first 0.15 s of each
+    single support, where the hip lags its plan by ~15 mm, and in the lead-in, where the trailing foot is held by
+    its toe body only), no saturation, T3/T4 108 N m.  The bounds below guard that progress; the issue's targets
+    (>= 99 % inside, T3/T4 <= 75 N m) are not met yet."""
+    sc, sim, res = zmp_walk
+    rep = audit_results({**res.log.arrays(), "phase_names": np.array(res.phase_names)}, hm,
+                        sc.contact.friction_coefficient)
+    s = summarize(res, sc.name, "pinocchio")
+    assert rep.zmp_outside.mean() < 0.40
+    assert s["saturated_fraction"] == 0.0
+    assert max(s["torque_peak_Nm"]["T3"], s["torque_peak_Nm"]["T4"]) < 125.0
+    assert s["hip_com_error_rms_m"] < 0.020 and s["hip_com_error_max_m"] < 0.045
