@@ -3,7 +3,7 @@
 
     python scripts/bench_sweep.py [SWEEP.yaml] [--workers 2] [--repeats 3] [--engine pinocchio]
 
-Default sweep: scripts/sweeps/speed_step.yaml (16 walks of sim 3).  Prints one JSON object:
+Default sweep: scripts/sweeps/speed_step.yaml (32 walks of sim 3: 16 per gait).  Prints one JSON object:
 
 - ``serial_walks_s``: the walks run one after another in this process with the model and the kernel already
   loaded (:func:`humanoid_sim.sweep.walk.walk_row`, the task body; median of ``--repeats``);

@@ -66,9 +66,11 @@ def test_a_missing_key_is_created_and_left_to_the_scenario_schema(tmp_path):
     (w,) = spec_of(tmp_path, grid={"simulation.t_end_s": [1.5]})
     assert w.doc["simulation"]["t_end_s"] == 1.5
     assert parse_scenario(w.doc).simulation.t_end_s == 1.5
-    # a new section is created too; the schema decides: today it has no 'gait' section
-    with pytest.raises(SweepError, match=r"walk 0 \(gait\.hip_reference=thesis\): gait: unknown key"):
-        spec_of(tmp_path, grid={"gait.hip_reference": ["thesis"]})
+    # a new section is created too (sim 3 has no 'gait' section); the schema decides what it may hold
+    (w,) = spec_of(tmp_path, grid={"gait.hip_reference": ["zmp_preview"]})
+    assert w.doc["gait"] == {"hip_reference": "zmp_preview"}
+    with pytest.raises(SweepError, match=r"walk 0 \(gait\.preview_s=1\.6\): gait\.preview_s: unknown key"):
+        spec_of(tmp_path, grid={"gait.preview_s": [1.6]})
 
 
 def test_random_samples_are_seeded_uniform_and_crossed_with_the_grid(tmp_path):
@@ -247,14 +249,16 @@ def test_an_unreadable_table_exits_2_and_stays_untouched(tmp_path, capsys, no_cl
 
 
 # --------------------------------------------------------------------------------------------- speed_step.yaml
-def test_speed_step_is_4_speeds_by_4_step_lengths_of_sim3():
+def test_speed_step_is_4_speeds_by_4_step_lengths_by_2_gaits_of_sim3():
     spec = load_sweep(SPEED_STEP)
     assert spec.base_path.resolve() == SIM3.resolve()
     walks = spec.expand()
-    assert len(walks) == 16
-    assert [len(a.values) for a in spec.grid[:2]] == [4, 4]
-    base = next(w for w in walks if all(v == 1.0 for v in w.params.values()))
-    assert scenario_hash(base.doc) == scenario_hash(BASE)   # factor 1 x 1 is sim 3 itself
+    assert len(walks) == 32
+    assert [len(a.values) for a in spec.grid] == [4, 4, 2]
+    base = next(w for w in walks if all(v in (1.0, "thesis") for v in w.params.values()))
+    doc = copy.deepcopy(base.doc)
+    assert doc.pop("gait") == {"hip_reference": "thesis"}    # the default, written out
+    assert scenario_hash(doc) == scenario_hash(BASE)         # factor 1 x 1 with the thesis gait is sim 3 itself
 
 
 def _gait_axis_values() -> set:
@@ -264,9 +268,7 @@ def _gait_axis_values() -> set:
 
 
 def test_speed_step_lists_every_gait_the_schema_accepts():
-    """Passes today with no gait axis (the schema has no gait section); fails as soon as the scenario schema
-    accepts gait.hip_reference = thesis or zmp_preview while speed_step.yaml does not list it (then uncomment the
-    marked GAIT / ZMP_PREVIEW line of the file), and covers the gait axis from then on."""
+    """speed_step.yaml's gait axis lists exactly the hip references the scenario schema accepts."""
     accepted = set()
     for gait in ("thesis", "zmp_preview"):
         doc = copy.deepcopy(BASE)
