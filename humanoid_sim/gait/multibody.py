@@ -13,7 +13,7 @@ from typing import Any, Callable
 import numpy as np
 import pinocchio as pin
 
-from .errors import GaitError
+from .errors import GaitError, sample_time
 from .preview import CartTablePreview, PreviewResult, _finite_array
 
 
@@ -40,9 +40,7 @@ def manifold_derivatives(model: Any, q: np.ndarray, T: float) -> tuple[np.ndarra
     (second-order accurate in T); at the two ends the one-sided formulas through q_k, q_k+-1, q_k+-2
     (v second-order, a first-order accurate).  Needs N >= 3."""
     m = _pin_model(model)
-    T = float(T)
-    if not (np.isfinite(T) and T > 0):
-        raise GaitError(f"T: expected a finite sample time > 0 s, got {T!r}")
+    T = sample_time(T)
     q = _configurations(m, q, 3)
     n = len(q)
     v = np.empty((n, m.nv))

@@ -26,7 +26,7 @@ import numpy as np
 
 from humanoid_sim.audit import SoleGeometry
 
-from .errors import GaitError
+from .errors import GaitError, sample_time
 
 TRANSFERS = ("smoothstep", "linear")
 CONTIGUITY_TOL = 1e-9
@@ -69,12 +69,7 @@ def sample(intervals: Sequence[SupportInterval], T: float, transfer: str = "smoo
     it falls on the grid, to 1e-9 s), and the reference (N, 2), m."""
     if transfer not in TRANSFERS:
         raise GaitError(f"transfer: expected one of {TRANSFERS}, got {transfer!r}")
-    try:
-        T = float(T)
-    except (TypeError, ValueError):
-        raise GaitError(f"T: expected a sample time in s, got {T!r}") from None
-    if not (np.isfinite(T) and T > 0):
-        raise GaitError(f"T: expected a finite sample time > 0 s, got {T!r}")
+    T = sample_time(T)
     iv = list(intervals)
     if not iv:
         raise GaitError("intervals: expected at least one SupportInterval, got none")

@@ -164,13 +164,7 @@ class ZmpPreviewTrajectory:
                 np.array((0, 0, yawdd)), yaw
             zero = np.zeros(3)
             for f, (p, R, y) in self._feet0.items():
-                vals = (p, zero, zero, R, zero, zero, y)
-                if f == "R":
-                    (out.toe_R_p, out.toe_R_v, out.toe_R_a, out.foot_R_R, out.foot_R_w, out.foot_R_alpha,
-                     out.foot_R_yaw) = vals
-                else:
-                    (out.toe_L_p, out.toe_L_v, out.toe_L_a, out.foot_L_R, out.foot_L_w, out.foot_L_alpha,
-                     out.foot_L_yaw) = vals
+                out.set_foot(f, (p, zero, zero, R, zero, zero, y))
         else:
             out = self.inner.sample(k - 1, t)
             out.phase = k

@@ -147,6 +147,16 @@ class RefSample:
     def __repr__(self) -> str:
         return f"RefSample(phase={self.phase}, t_phase={self.t_phase:.6g}, hip_p={self.hip_p})"
 
+    def set_foot(self, foot: str, vals: tuple) -> None:
+        """Set foot "R" / "L": vals = (toe point, its velocity, its acceleration, orientation, angular velocity,
+        angular acceleration, yaw)."""
+        if foot == "R":
+            (self.toe_R_p, self.toe_R_v, self.toe_R_a, self.foot_R_R, self.foot_R_w, self.foot_R_alpha,
+             self.foot_R_yaw) = vals
+        else:
+            (self.toe_L_p, self.toe_L_v, self.toe_L_a, self.foot_L_R, self.foot_L_w, self.foot_L_alpha,
+             self.foot_L_yaw) = vals
+
 
 # ---------------------------------------------------------------------------------------------- internals
 class _Footprint:
@@ -392,12 +402,7 @@ class ReferenceTrajectory:
                 vals = (fp.p, _ZERO3, _ZERO3, fp.R, _ZERO3, _ZERO3, fp.yaw)
             else:
                 vals = self._swing_sample(sg, t)
-            if foot == "R":
-                (out.toe_R_p, out.toe_R_v, out.toe_R_a, out.foot_R_R, out.foot_R_w, out.foot_R_alpha,
-                 out.foot_R_yaw) = vals
-            else:
-                (out.toe_L_p, out.toe_L_v, out.toe_L_a, out.foot_L_R, out.foot_L_w, out.foot_L_alpha,
-                 out.foot_L_yaw) = vals
+            out.set_foot(foot, vals)
         return out
 
     def _hip_scalars(self, ph: PhaseInfo, sg: _Segment, t: float) -> tuple[float, ...]:
