@@ -30,8 +30,8 @@ class FootContact:
     ``force`` (3,) N and ``moment`` (3,) N m about the world origin: the resultant wrench the ground applies to
     the foot (toe and main body together).  ``cop`` (3,): centre of pressure on the plane z = 0 (NaN when the
     normal force is zero).  ``normal_toe`` / ``normal_main``: normal force (N) on the toe box and the main-body
-    box.  ``points`` (k, 3) contact points, ``point_normal`` (k,) their normal forces (N), ``point_geom`` (k,)
-    which geom (0 toe, 1 main body).  ``penetration`` (m, >= 0): deepest penetration of a sole box.
+    box.  ``points`` (k, 3) contact points, ``point_normal`` (k,) their normal forces (N), ``point_force`` (k, 3)
+    their forces on the foot (world frame, N), ``point_geom`` (k,) which geom (0 toe, 1 main body).  ``penetration`` (m, >= 0): deepest penetration of a sole box.
     """
 
     foot: str
@@ -41,6 +41,7 @@ class FootContact:
     normal_main: float = 0.0
     points: np.ndarray = field(default_factory=lambda: _EMPTY3.copy())
     point_normal: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    point_force: np.ndarray = field(default_factory=lambda: _EMPTY3.copy())
     point_geom: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     penetration: float = 0.0
 
@@ -101,6 +102,7 @@ def foot_contacts(mm: MujocoModel, data: mujoco.MjData) -> dict[str, FootContact
         c.moment = np.cross(P, F).sum(axis=0) + T.sum(axis=0)
         c.points = P
         c.point_normal = np.array([r[3] for r in lst])
+        c.point_force = F
         c.point_geom = np.array([r[4] for r in lst], dtype=int)
         c.normal_toe = float(c.point_normal[c.point_geom == 0].sum())
         c.normal_main = float(c.point_normal[c.point_geom == 1].sum())
@@ -109,9 +111,10 @@ def foot_contacts(mm: MujocoModel, data: mujoco.MjData) -> dict[str, FootContact
 
 
 # ---------------------------------------------------------------------------------------- sole measures
-def sole_corners(mm: MujocoModel, data: mujoco.MjData, foot: str) -> np.ndarray:
-    """(4, 3) world positions of the bottom corners of the foot's main-body sole box, m (after kinematics)."""
-    g = mm.sole_geoms[foot][1]
+def sole_corners(mm: MujocoModel, data: mujoco.MjData, foot: str, box: int = 1) -> np.ndarray:
+    """(4, 3) world positions of the bottom corners of one of the foot's sole boxes, m (after kinematics):
+    ``box`` 1 the main body's (default), 0 the toe body's."""
+    g = mm.sole_geoms[foot][box]
     half = mm.model.geom_size[g]
     local = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1]], dtype=float) * half
     R = data.geom_xmat[g].reshape(3, 3)
