@@ -67,7 +67,7 @@ from humanoid_sim.contact import record_anchors
 from humanoid_sim.controllers.base import Command, Observation
 from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
 from humanoid_sim.model import FOOT_BODY, TOE_BODY, HumanoidModel
-from humanoid_sim.mujoco.contact import FootContact, SlipMeter, foot_contacts, sole_cop, sole_corners, sole_tilt
+from humanoid_sim.mujoco.contact import FootContact, _cross, SlipMeter, foot_contacts, sole_cop, sole_corners, sole_tilt
 from humanoid_sim.mujoco.model import MujocoModelError, MujocoSettings
 from humanoid_sim.mujoco.sim import MujocoSim, MujocoSimError
 from humanoid_sim.phases import Phase
@@ -201,10 +201,10 @@ class MujocoEngine:
             tau = self._tau(q, cmd)
             # one MuJoCo step first: its acceleration and contact forces are those of the state at ti
             sim.step(tau, sim.timestep)
-            a = self.map.a_from_qacc(q, v, sim.data.qacc)
-            checks.check_acceleration(ti, a)
+            checks.check_acceleration(ti, sim.data.qacc)  # finite iff Pinocchio's a is
             feet = foot_contacts(self.mm, sim.data)
             if i == 0:
+                a = self.map.a_from_qacc(q, v, sim.data.qacc)
                 record = self._record(phase, q, v, a, cmd, tau, feet)
             if self._measure(ti, q, feet):
                 break  # a fall: the run ends at this state (check() reports it)
@@ -241,7 +241,7 @@ class MujocoEngine:
                 F = c.point_force[sel]
                 arm = c.points[sel] - data.xipos[bid]
                 bf[body - 1] = R.T @ F.sum(axis=0)
-                bm[body - 1] = R.T @ np.cross(arm, F).sum(axis=0)
+                bm[body - 1] = R.T @ _cross(arm, F).sum(axis=0)
         # Pinocchio at (q, v, a): task frames, the drift from the anchors, the dynamics residual
         tau_c = self.map.tau_from_qfrc(q, data.qfrc_constraint)
         residual = float(np.max(np.abs(pin.rnea(model, d, q, v, a) - tau - tau_c)))
