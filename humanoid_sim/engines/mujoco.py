@@ -15,9 +15,11 @@ torques held on the motors in between (zero-order hold) while MuJoCo steps at it
 step ``h`` (``scenario.simulation.step_s``, 10 ms for the thesis's sims) is the log and phase-decision rate: each
 loop step runs h / control_period controller updates (h must be a whole number of control periods, which must be a
 whole number of MuJoCo timesteps).  ``Observation.stage`` is the update's index within the step (0 = the step's
-start).  Why 2 ms: ``tests/test_mujoco_engine.py::test_control_rate_converges`` runs the first 0.6 s of sim 1 at
-100, 200, 500 and 1000 Hz; the hip path's largest distance from the 1000 Hz run falls as the rate rises, and at
-500 Hz it is below 1 mm (the numbers are in the test and README, "Would it stand on real ground?").
+start).  Why 2 ms: ``tests/test_mujoco_engine.py::test_control_rate_converges`` drops the robot 5 mm onto both
+feet under a 10 rad/s PD (a walking controller's bandwidth: the thesis controller's retuned hip gain is ~9 rad/s)
+and compares the hip path over 0.6 s at control periods 10, 5 and 2 ms with 1 ms (control at every MuJoCo step):
+10 ms diverges, 5 ms is 0.18 mm off, 2 ms 0.044 mm (first order).  The thesis gait itself falls within 6 ms on
+real ground, so it cannot show the convergence; the lead's feasible gait should be re-checked at 1 ms.
 
 Phase switching (the loop's hooks :meth:`touchdown_signal` and :meth:`check`):
 
