@@ -1,6 +1,6 @@
 """``walk``: run a scenario, save results and plots, optionally play it in meshcat.
 
-    python scripts/walk.py [SCENARIO] [--out DIR] [--engine pinocchio|thesis] [--no-kernel] [--until SECONDS]
+    python scripts/walk.py [SCENARIO] [--out DIR] [--engine pinocchio|thesis|mujoco] [--no-kernel] [--until SECONDS]
                            [--no-plots] [--no-html] [--view]
 
 Exit status: 0 when the walk completes every planned phase, 1 when it fails (the reason is printed, the
@@ -36,7 +36,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="scenario YAML (default: scripts/params/sim1.yaml, the thesis's Simulation 1)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default: results/<scenario name>/)")
     p.add_argument("--engine", choices=ENGINE_NAMES, default="pinocchio",
-                   help="dynamics engine: the fast Pinocchio path or the thesis's NumPy formulas (slow)")
+                   help="dynamics engine: the fast Pinocchio path (welded feet), the thesis's NumPy formulas (slow), or "
+                        "MuJoCo (real unilateral, frictional foot contact: would the walk stand?)")
     p.add_argument("--no-kernel", action="store_true",
                    help="run every stage on the NumPy reference path instead of the compiled kernel (about 4x "
                         "slower; to try a change to the controller or dynamics code before porting it to "
@@ -107,7 +108,7 @@ def _build_kernel(args: argparse.Namespace) -> "KernelBuild | None":
 
     from humanoid_sim import kernel
 
-    if args.engine != "pinocchio" or args.no_kernel or not kernel.AVAILABLE:
+    if args.engine not in ("pinocchio", "mujoco") or args.no_kernel or not kernel.AVAILABLE:
         return None
     if os.environ.get("HUMANOID_SIM_KERNEL_BUILD", "1") == "0":  # compile in this process, the ordinary way
         if not kernel.cache_present() and not args.quiet:

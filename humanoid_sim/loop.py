@@ -25,12 +25,16 @@ Decisions where the thesis is silent:
   window: with the thesis's 0.05 m double-support rule a DSP ends one or two steps after touchdown, so the next
   SSP's reference is held at its start for up to t_DSP.
 - P_i of the SSP switching rule is the actual swing toe point at the phase start (thesis 6.1.1.1 wording).
+- An engine that senses contact (optional hooks of :class:`humanoid_sim.engines.base.Engine`) decides touchdown
+  with ``touchdown_signal(foot)``; the geometric rule's travel clause stays as the guard.  Its ``check(t)`` may end
+  the run after a step (a fall on real ground), and its ``run_info()`` adds to ``SimResult.extra``.
 """
 
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -39,7 +43,7 @@ from humanoid_sim.command import CommandError
 from humanoid_sim.contact import ContactError
 from humanoid_sim.controllers.base import Command, Controller, ControllerError, Observation, as_command
 from humanoid_sim.engines.base import Engine
-from humanoid_sim.phases import Phase, SwitchThresholds
+from humanoid_sim.phases import Phase, SwitchThresholds, ssp_should_end
 from humanoid_sim.results import SimLog
 from humanoid_sim.scenario import Scenario
 from humanoid_sim.selector import PhaseRecord, PhaseSelector, SimulationError
@@ -99,6 +103,13 @@ class _Checked:
         return as_command(out, self.nv, self.name)
 
 
+def _travelled(sel: PhaseSelector, toe: np.ndarray) -> bool:
+    """The guard of a sensed touchdown: the swing toe has covered more than the geometric rule's share of its
+    planned horizontal travel (6.1.1.1's second clause; its height clause is what the sensed contact replaces)."""
+    th = replace(sel.thresholds, touchdown_tolerance=math.inf)
+    return ssp_should_end(toe, sel.toe_start, sel.targets.swing_toe_end, th)
+
+
 def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scenario: Scenario, q0: np.ndarray,
         t_end: float | None = None, progress: Callable[[float, int], None] | None = None,
         hold: Phase | None = None) -> SimResult:
@@ -125,6 +136,8 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
     completed, reason = False, ""
     steps = 0
     on_landing = getattr(controller, "landing", None)
+    check = getattr(engine, "check", None)                  # optional engine hooks (engines.base.Engine)
+    touch_signal = getattr(engine, "touchdown_signal", None)
     wall0 = time.perf_counter()
     try:
         try:
@@ -140,10 +153,15 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
                 if progress is not None:
                     progress(t, k)
                 hip = engine.hip_com()
+                if check is not None:
+                    check(t)
                 sel.check_state(t, *engine.state_vectors(), hip)
                 swing = sel.phase.swing_foot if hold is not None else sel.info.swing_foot
                 toe = engine.toe_point(swing) if swing is not None else None
-                if not sel.should_switch(t, hip, toe):
+                # an engine that senses touchdown decides it, the geometric rule's travel clause as the guard
+                signal = touch_signal(swing) if touch_signal is not None and swing is not None and hold is None \
+                    else None
+                if not (sel.should_switch(t, hip, toe) if signal is None else signal and _travelled(sel, toe)):
                     continue
                 sel.end_phase(t)
                 if sel.is_last:
@@ -177,6 +195,7 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
             close()
     extra = {"nominal_end": nominal_end, "engine": engine.name, "controller": control.name}
     extra.update(getattr(controller, "run_info", lambda: {})())
+    extra.update(getattr(engine, "run_info", lambda: {})())
     names = [p.name for p in traj.phases]
     if hold is not None:
         names[0] = hold.value

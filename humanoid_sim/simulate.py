@@ -56,7 +56,7 @@ class Simulator:
 
                 controller = load_controller(scenario.controller_class)
             else:
-                controller = ThesisController(compiled=compiled if engine == "pinocchio" else False)
+                controller = ThesisController(compiled=compiled if engine in ("pinocchio", "mujoco") else False)
         self.controller = controller
         controller.setup(ControlContext(hm, scenario, self.traj, self.q0, self.engine.name, self.engine.constraints))
 

@@ -16,7 +16,9 @@ def _f(x: Any) -> float | None:
 
 
 def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, Any]:
-    """Summary of a run (SI units: m, rad, N m, s)."""
+    """Summary of a run (SI units: m, rad, N m, s).  Runs on an engine with real contact (``--engine mujoco``) add
+    ``fell``, ``fall_time_s``, ``fall_reason``, ``foot_slip_max_m``, ``foot_tilt_max_rad``, ``penetration_max_m``
+    and ``control_period_s`` (:meth:`humanoid_sim.engines.mujoco.MujocoEngine.run_info`)."""
     a = result.log.arrays()
     n = len(result.log)
     out: dict[str, Any] = {
@@ -54,6 +56,13 @@ def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, A
             "constraint_drift_max_m": _f(a["drift_position"].max()),
             "constraint_drift_max_rad": _f(a["drift_orientation"].max()),
         })
+    ground = result.extra.get("ground")
+    if ground is not None:  # an engine with real contact (MuJoCo): falls and how the feet held on the ground
+        out.update({"fell": bool(ground["fell"]), "fall_time_s": ground["fall_time_s"],
+                    "fall_reason": ground["fall_reason"], "foot_slip_max_m": _f(ground["foot_slip_max_m"]),
+                    "foot_tilt_max_rad": _f(ground["foot_tilt_max_rad"]),
+                    "penetration_max_m": _f(ground["penetration_max_m"]),
+                    "control_period_s": _f(ground["control_period_s"])})
     td = [p.touchdown_error_m for p in result.phases if p.touchdown_error_m is not None]
     out["toe_touchdown_error_max_m"] = _f(max(td)) if td else None
     out["phase_log"] = [{"phase": p.index + 1, "name": p.name, "start": _f(p.t_start),

@@ -18,7 +18,15 @@ Prints one JSON object:
   construction and a 0.05 s warm-up run (loading the compiled kernel from numba's disk cache and its start-up check;
   the very first run after an install compiles it, up to a minute);
 - ``breakdown``: fraction of the fast run's stepping time per part (trajectory, controller, dynamics, integrator,
-  logging, other), from a cProfile run (profiling inflates the absolute time, not much the proportions).
+  logging, other), from a cProfile run (profiling inflates the absolute time, not much the proportions);
+- ``mujoco``: the MuJoCo engine (``--engine mujoco``, thesis controller at its control rate) on the same scenario:
+  ``real_time_factor`` (median of the repeats, in this same process), the simulated time and how the run ended (the
+  thesis gait falls within milliseconds, so this is a start-up figure), and the raw costs behind a sustained walk:
+  ``controller_us_per_call`` (the thesis controller, compiled, at the scenario's initial state, median of 500
+  calls), ``mj_step_us`` (one MuJoCo step standing in double support, median of 1000), ``engine_us_per_update``
+  (the engine's own work per control update: state map, contact forces, ground measures; from a 2 s standing run
+  minus its controller and MuJoCo steps) and ``projected_real_time_factor`` = 1 / (rate x (controller + engine) +
+  1000 steps x mj_step) for a walk that does not fall.
 """
 
 from __future__ import annotations
@@ -87,6 +95,81 @@ def breakdown(hm, scenario, t_end: float | None) -> dict[str, float]:
     return {k: round(v / total, 3) for k, v in parts.items()}
 
 
+def mujoco_bench(hm, scenario, repeats: int) -> dict:
+    """The MuJoCo engine's speed (see the module docstring)."""
+    import numpy as np
+
+    from humanoid_sim.controllers.base import Observation
+    from humanoid_sim.phases import Phase
+    from humanoid_sim.mujoco.standing import StandingController
+
+    walls, res = [], None
+    for _ in range(repeats):
+        sim = Simulator(hm, scenario, engine="mujoco")
+        w0 = time.perf_counter()
+        res = sim.run()
+        walls.append(time.perf_counter() - w0)
+    wall = statistics.median(walls)
+    eng, ctrl = sim.engine, sim.controller
+    period = eng.settings.control_period_s
+    # raw costs: the thesis controller at the initial state (its first phase), one MuJoCo step standing
+    eng.start(sim.q0, Phase(sim.traj.phases[0].name))
+    obs = Observation(0.0, 0, eng.phase, eng.q, eng.v, eng.anchors, 0)
+    calls = []
+    for _ in range(500):
+        c0 = time.perf_counter()
+        ctrl(obs)
+        calls.append(time.perf_counter() - c0)
+    ctrl_us = 1e6 * statistics.median(calls)
+    stand = StandingController(hm, sim.q0, period)
+    mj = eng.sim
+    mj.set_state(sim.q0, np.zeros(hm.model.nv))
+    steps = []
+    for _ in range(1000):
+        tau = stand(*mj.state())
+        c0 = time.perf_counter()
+        mj.step(tau, mj.timestep)
+        steps.append(time.perf_counter() - c0)
+    step_us = 1e6 * statistics.median(steps)
+    # the engine's own work per control update: a 2 s standing run through the engine and the loop
+    from humanoid_sim.loop import run as loop_run
+
+    class Stand:
+        name = "standing"
+
+        def setup(self, ctx) -> None:
+            pass
+
+        def __call__(self, o):
+            return stand(o.q, o.v)
+
+    seng = type(eng)(hm, scenario)
+    w0 = time.perf_counter()
+    sres = loop_run(seng, Stand(), sim.traj, scenario, sim.q0, t_end=2.0, hold=Phase.RFFDSP)
+    swall = time.perf_counter() - w0
+    updates = sres.stage_evaluations
+    stand_us = []
+    q, v = seng.q, seng.v
+    for _ in range(200):
+        c0 = time.perf_counter()
+        stand(q, v)
+        stand_us.append(time.perf_counter() - c0)
+    engine_us = max(0.0, (swall - updates * statistics.median(stand_us)
+                          - 2.0 / mj.timestep * step_us * 1e-6) / updates * 1e6)
+    rate = 1.0 / period
+    per_s = rate * (ctrl_us + engine_us) * 1e-6 + (1.0 / mj.timestep) * step_us * 1e-6
+    return {"sim_time_s": round(res.sim_time, 4), "reason": res.reason, "repeats": repeats,
+            "wall_time_s_median": round(wall, 5), "real_time_factor": round(res.sim_time / wall, 2),
+            "control_period_s": period, "timestep_s": mj.timestep,
+            "controller_us_per_call": round(ctrl_us, 1), "controller_compiled": sim.kernel is not None,
+            "mj_step_us": round(step_us, 1), "engine_us_per_update": round(engine_us, 1),
+            "standing_2s_real_time_factor": round(sres.sim_time / swall, 2),
+            "projected_real_time_factor": round(1.0 / per_s, 2),
+            "projected_seconds_per_sim_second": {"controller": round(rate * ctrl_us * 1e-6, 4),
+                                                 "mj_step": round(step_us * 1e-3, 4),
+                                                 "engine": round(rate * engine_us * 1e-6, 4)}}
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenario", type=Path, default=ROOT / "scripts" / "params" / "sim1.yaml")
@@ -152,6 +235,7 @@ def main(argv: list[str] | None = None) -> int:
         "kernel_load_s": round(kernel_s, 3),
         "breakdown": breakdown(hm, scenario, None),
     }
+    out["mujoco"] = mujoco_bench(hm, scenario, args.repeats)
     print(json.dumps(out, indent=2))
     return 0
 

@@ -2,20 +2,25 @@
 
 - ``pinocchio`` (:class:`.weld.WeldEngine`, the default): the thesis's welded feet on Pinocchio's KKT dynamics;
 - ``thesis`` (:class:`.oracle.OracleEngine`): the NumPy transcription of the thesis's equations (slow; for
-  comparison).
+  comparison);
+- ``mujoco`` (:class:`.mujoco.MujocoEngine`): MuJoCo, with unilateral frictional contact instead of welds (would
+  the walk stand on real ground?).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-ENGINE_NAMES = ("pinocchio", "thesis")
+ENGINE_NAMES = ("pinocchio", "thesis", "mujoco")
 """Names ``walk.py --engine`` accepts, in the order the help lists them."""
 
 
-def make_engine(name: str, hm: Any, scenario: Any, traj: Any, compiled: bool | None = None) -> Any:
+def make_engine(name: str, hm: Any, scenario: Any, traj: Any, compiled: bool | None = None, **options: Any) -> Any:
     """The engine called ``name`` for one run (``compiled``: the weld engine's compiled integration, see
-    :class:`.weld.WeldEngine`)."""
+    :class:`.weld.WeldEngine`; ``options``: settings of the MuJoCo engine, :class:`.mujoco.MujocoEngineSettings`
+    fields, e.g. ``control_period_s=0.001``)."""
+    if options and name != "mujoco":
+        raise ValueError(f"engine {name!r} takes no options, got {sorted(options)}")
     if name == "pinocchio":
         from humanoid_sim.engines.weld import WeldEngine
 
@@ -24,6 +29,10 @@ def make_engine(name: str, hm: Any, scenario: Any, traj: Any, compiled: bool | N
         from humanoid_sim.engines.oracle import OracleEngine
 
         return OracleEngine(hm, scenario, traj)
+    if name == "mujoco":
+        from humanoid_sim.engines.mujoco import MujocoEngine
+
+        return MujocoEngine(hm, scenario, traj, **options)
     raise ValueError(f"engine: {name!r} is not one of {ENGINE_NAMES}")
 
 

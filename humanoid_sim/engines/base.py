@@ -21,11 +21,22 @@ from humanoid_sim.selector import PhaseSelector
 @runtime_checkable
 class Engine(Protocol):
     """An engine (implementations: :class:`humanoid_sim.engines.weld.WeldEngine`,
-    :class:`humanoid_sim.engines.oracle.OracleEngine`).
+    :class:`humanoid_sim.engines.oracle.OracleEngine`, :class:`humanoid_sim.engines.mujoco.MujocoEngine`).
 
     Attributes: ``name`` (as ``walk.py --engine`` spells it); ``model`` (the Pinocchio model); ``constraints``
     (what it offers a controller for a computed torque under the phase's contacts, or None); optionally ``errors``
     (its own exception types that end a run with a reason) and ``close()`` (called once the run is over).
+
+    Optional hooks, for engines whose contacts are physical rather than imposed (the loop uses them when present,
+    :class:`humanoid_sim.engines.mujoco.MujocoEngine`):
+
+    - ``touchdown_signal(foot) -> bool | None``: whether ``foot`` (the swing foot of a single support) has touched
+      the ground at the current state; a bool replaces the geometric touchdown rule's height clause (its
+      horizontal-travel clause stays as a guard), None defers to the geometric rule;
+    - ``check(t) -> None``: called after every step, before the phase selector's checks; raises a
+      :class:`humanoid_sim.selector.SimulationError` (its message the one-line reason) to end the run, e.g. on a
+      fall;
+    - ``run_info() -> dict``: merged into ``SimResult.extra`` after the run (e.g. ground measures for summary.json).
     """
 
     name: str

@@ -140,7 +140,8 @@ class StateMap:
         v = self._check(v, self.nv, "v")
         qacc = self._check(qacc, self.nv, "qacc")
         a = np.empty(self.nv)
-        a[:3] = R.T @ qacc[:3] - np.cross(v[3:6], v[:3])
+        w, u = v[3:6], v[:3]
+        a[:3] = R.T @ qacc[:3] - (w[1] * u[2] - w[2] * u[1], w[2] * u[0] - w[0] * u[2], w[0] * u[1] - w[1] * u[0])
         a[3:6] = qacc[3:6]
         a[self.pin_v] = qacc[self.mj_v]
         return a

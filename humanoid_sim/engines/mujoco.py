@@ -1,0 +1,402 @@
+"""The MuJoCo engine (``walk.py --engine mujoco``): the controller on real ground -- unilateral, frictional foot
+contact resolved by an independent physics engine (:mod:`humanoid_sim.mujoco`).
+
+Nothing holds the feet: the model (:func:`humanoid_sim.mujoco.model.build_model`) is the generated URDF with a free
+joint at the lower trunk, a ground plane, the two sole boxes of each foot as the only collision geometry, and 26
+motors; :class:`humanoid_sim.mujoco.model.MujocoSettings` documents its timestep, friction cone, impratio and
+solref / solimp.  The engine offers no constraint model (``constraints = None``): the thesis controller then
+computes its 5.1 / 5.2 torque under the Pinocchio weld model of the phase (the contact it assumes), with the
+held bodies anchored where they were when the phase started (``Observation.anchors``); any controller of the
+interface works the same way.  The controller reads MuJoCo's state only through :class:`humanoid_sim.mujoco.state.
+StateMap` (Pinocchio's q / v).
+
+Control rate: the controller runs every :attr:`MujocoEngineSettings.control_period_s` (default 2 ms, 500 Hz), its
+torques held on the motors in between (zero-order hold) while MuJoCo steps at its own timestep (1 ms).  The loop's
+step ``h`` (``scenario.simulation.step_s``, 10 ms for the thesis's sims) is the log and phase-decision rate: each
+loop step runs h / control_period controller updates (h must be a whole number of control periods, which must be a
+whole number of MuJoCo timesteps).  ``Observation.stage`` is the update's index within the step (0 = the step's
+start).  Why 2 ms: ``tests/test_mujoco_engine.py::test_control_rate_converges`` drops the robot 5 mm onto both
+feet under a 10 rad/s PD (a walking controller's bandwidth: the thesis controller's retuned hip gain is ~9 rad/s)
+and compares the hip path over 0.6 s at control periods 10, 5 and 2 ms with 1 ms (control at every MuJoCo step):
+10 ms diverges, 5 ms is 0.18 mm off, 2 ms 0.044 mm (first order).  The thesis gait itself falls within 6 ms on
+real ground, so it cannot show the convergence; the lead's feasible gait should be re-checked at 1 ms.
+
+Phase switching (the loop's hooks :meth:`touchdown_signal` and :meth:`check`):
+
+- touchdown ends a single support when the swing foot's soles carry a normal force of at least
+  :attr:`MujocoEngineSettings.contact_force_N` (20 N, ~4 % of the robot's weight: well above the force of a sole
+  brushing the ground, well below a landing's) AND the swing toe has covered the share of its planned horizontal
+  travel of the geometric rule of 6.1.1 (the guard against a foot scuffing the ground early in the swing).  The
+  geometric rule's height clause is what the force measures directly, so it is not required: a foot that lands
+  tilted still ends the swing.  Nothing is done to the state at touchdown: MuJoCo resolved the impact;
+  the trajectory learns the actual landing from the loop (``traj.set_landing``);
+- double support ends by the loop's rule (hip distance or overtime), as on the weld engine.
+
+Falls (:meth:`check`, at every loop step; each ends the run with a :class:`MujocoFall` naming what happened): the
+Body-17 CoM below ``scenario.simulation.fall_height_m``; the lower trunk's z axis more than
+:attr:`MujocoEngineSettings.trunk_tilt_fall_rad` (45 deg) from the vertical; or the only supporting foot (the other
+carries less than ``contact_force_N``) tipping onto an edge: its centre of pressure within ``edge_tolerance_m``
+(2 mm) of a sole edge (toe, heel, outer, inner) while its main body is tilted more than ``edge_tilt_rad`` (3 deg,
+ten times the tilt penetration alone gives a flat sole).  A flat-footed controller cannot recover from that: the
+ground can no longer push back on that side.
+
+Logged signals (same schema as the other engines, ``results.SIGNALS``), per loop step, at the state at the step's
+start and with the torques of its first control update: ``foot_wrench``, ``cop``, ``zmp``, ``body_force`` /
+``body_moment`` from MuJoCo's contact forces (``mj_contactForce``, :mod:`humanoid_sim.mujoco.contact`) of that
+first MuJoCo step; ``theta_ddot`` from MuJoCo's acceleration (``qacc``); ``in_contact`` = the feet the phase's
+contact set holds (what the controller assumes; the contact audit reads it); ``drift_position`` /
+``drift_orientation`` = how far the phase's held bodies are from their anchors (m / rad; the weld engine's drift
+is the same measure: there it is the welds' numerical drift, here the real feet's slip and tilt against the weld
+the controller assumes); ``dynamics_residual`` = ||RNEA(q, v, a) - tau - tau_contact||_inf with Pinocchio's RNEA,
+MuJoCo's acceleration and MuJoCo's constraint forces (a check that both engines describe the same robot).
+
+summary.json gains (``run_info``): ``fell``, ``fall_time_s``, ``fall_reason``, ``foot_slip_max_m`` (largest
+horizontal travel of a sole box's corners while that box stays loaded, over both feet and the whole run),
+``foot_tilt_max_rad`` (largest tilt of a foot's main body while it carries load), ``penetration_max_m``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import Any, Callable
+
+import numpy as np
+import pinocchio as pin
+
+from humanoid_sim.actuators import Actuators
+from humanoid_sim.contact import record_anchors
+from humanoid_sim.controllers.base import Command, Observation
+from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
+from humanoid_sim.model import FOOT_BODY, TOE_BODY, HumanoidModel
+from humanoid_sim.mujoco.contact import FootContact, _cross, SlipMeter, foot_contacts, sole_cop, sole_corners, sole_tilt
+from humanoid_sim.mujoco.model import MujocoModelError, MujocoSettings
+from humanoid_sim.mujoco.sim import MujocoSim, MujocoSimError
+from humanoid_sim.phases import Phase
+from humanoid_sim.results import SimLog
+from humanoid_sim.scenario import Scenario
+from humanoid_sim.selector import PhaseSelector, SimulationError, all_finite
+
+FEET = ("R", "L")
+FOOT_NAME = {"R": "right", "L": "left"}
+LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+class MujocoFall(SimulationError):
+    """The robot fell on MuJoCo's ground; the message says when and how (which foot, which edge)."""
+
+
+@dataclass(frozen=True)
+class MujocoEngineSettings:
+    """Settings of the MuJoCo engine (SI units); the module docstring gives the reasons for the defaults.
+
+    ``contact``: MuJoCo's numerical settings, None = :meth:`MujocoSettings.from_scenario` (defaults with the
+    scenario's friction coefficient)."""
+
+    control_period_s: float = 0.002
+    contact_force_N: float = 20.0
+    trunk_tilt_fall_rad: float = math.pi / 4
+    edge_tilt_rad: float = math.radians(3.0)
+    edge_tolerance_m: float = 0.002
+    contact: MujocoSettings | None = None
+
+    def __post_init__(self) -> None:
+        def bad(name: str, expected: str) -> MujocoModelError:
+            return MujocoModelError(f"MujocoEngineSettings.{name} = {getattr(self, name)!r}: expected {expected}")
+
+        def pos(x: Any) -> bool:
+            return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+
+        if not pos(self.control_period_s) or self.control_period_s > 0.1:
+            raise bad("control_period_s", "a period in (0, 0.1] s")
+        for name in ("contact_force_N", "edge_tilt_rad", "edge_tolerance_m"):
+            if not pos(getattr(self, name)):
+                raise bad(name, "a positive number")
+        if not (pos(self.trunk_tilt_fall_rad) and self.trunk_tilt_fall_rad <= math.pi):
+            raise bad("trunk_tilt_fall_rad", "an angle in (0, pi] rad")
+        if self.contact is not None and not isinstance(self.contact, MujocoSettings):
+            raise bad("contact", "a MujocoSettings or None")
+
+
+class MujocoEngine:
+    """The thesis humanoid on MuJoCo's ground (see the module docstring).
+
+    Engine interface (:class:`humanoid_sim.engines.base.Engine`) plus the optional hooks :meth:`touchdown_signal`,
+    :meth:`check` and :meth:`run_info`.  ``settings``: a :class:`MujocoEngineSettings`, or None for the
+    defaults; ``overrides`` replace named fields of it (``MujocoEngine(hm, sc, control_period_s=0.001)``)."""
+
+    name = "mujoco"
+    constraints = None
+    errors = (MujocoSimError, MujocoModelError)
+
+    def __init__(self, hm: HumanoidModel, scenario: Scenario, traj: Any = None,
+                 settings: MujocoEngineSettings | None = None, **overrides: Any) -> None:
+        settings = MujocoEngineSettings() if settings is None else settings
+        if not isinstance(settings, MujocoEngineSettings):
+            raise MujocoModelError(f"settings: expected a MujocoEngineSettings, got {type(settings).__name__}")
+        names = {f.name for f in fields(MujocoEngineSettings)}
+        unknown = sorted(set(overrides) - names)
+        if unknown:
+            raise MujocoModelError(f"MujocoEngine: unknown setting(s) {unknown}; expected some of {sorted(names)}")
+        self.settings = replace(settings, **overrides)
+        self.hm = hm
+        self.sc = scenario
+        self.traj = traj
+        self.model = hm.model
+        contact = self.settings.contact or MujocoSettings.from_scenario(scenario)
+        self.sim = MujocoSim(hm, contact)
+        self.mm = self.sim.mm
+        self.map = self.sim.map
+        self.act = Actuators(hm)
+        self.data = hm.model.createData()
+        self.rec_data = hm.model.createData()
+        self.fid = {n: hm.frame_id(n) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2")}
+        self._n_sub = self.sim.substeps(self.settings.control_period_s)  # checks the period is whole timesteps
+        self._body = {TOE_BODY[f]: self.mm.foot_bodies[f][0] for f in FEET}
+        self._body.update({FOOT_BODY[f]: self.mm.foot_bodies[f][1] for f in FEET})
+        self._no_sat = np.zeros(26, dtype=bool)
+        self.q = self.v = None
+        self.phase: Phase | None = None
+        self.anchors = None
+        self._end: dict[str, FootContact] = {}
+        self._reset_measures()
+
+    def _reset_measures(self) -> None:
+        self.slip = {f: (SlipMeter(), SlipMeter()) for f in FEET}  # (toe box, main box)
+        self.tilt_max = 0.0
+        self.penetration_max = 0.0
+        self.fall: tuple[float, str] | None = None
+
+    # ------------------------------------------------------------------ state
+    def start(self, q0: np.ndarray, phase: Phase) -> None:
+        """At rest at q0 (the feet where q0 puts them, on the ground), time 0."""
+        self.sim.set_state(q0, np.zeros(self.model.nv))
+        self.sim.time = 0.0
+        self.q, self.v = self.sim.state()
+        self.phase = phase
+        self.anchors = record_anchors(self.model, self.q, phase.contacts)
+        self._reset_measures()
+        self._end = self.sim.foot_wrenches()
+
+    def state_vectors(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.q, self.v
+
+    # ------------------------------------------------------------------ one step
+    def step(self, t: float, h: float, k: int, control: Callable[[Observation], Command],
+             checks: PhaseSelector) -> tuple:
+        """Advance from t to t + h: h / control_period controller updates, each held for its period.  Returns the
+        log record of the state at t with the first update's torques and the contact forces they produce."""
+        period = self.settings.control_period_s
+        n_ctrl = round(h / period)
+        if not (n_ctrl >= 1 and abs(n_ctrl * period - h) <= 1e-9 * max(1.0, h)):
+            raise MujocoSimError(f"loop step h = {h!r} s: expected a whole number of control periods "
+                                 f"(MujocoEngineSettings.control_period_s = {period:g} s)")
+        phase, anchors, sim = self.phase, self.anchors, self.sim
+        record: tuple = ()
+        q, v = self.q, self.v
+        for i in range(n_ctrl):
+            ti = t + i * period
+            if i:
+                q, v = sim.state()
+                checks.check_stage(ti, q, v, i)
+            cmd = control(Observation(ti, k, phase, q, v, anchors, i))
+            tau = self._tau(q, cmd)
+            # one MuJoCo step first: its acceleration and contact forces are those of the state at ti
+            sim.step(tau, sim.timestep)
+            checks.check_acceleration(ti, sim.data.qacc)  # finite iff Pinocchio's a is
+            feet = foot_contacts(self.mm, sim.data)
+            if i == 0:
+                a = self.map.a_from_qacc(q, v, sim.data.qacc)
+                record = self._record(phase, q, v, a, cmd, tau, feet)
+            if self._measure(ti, q, feet):
+                break  # a fall: the run ends at this state (check() reports it)
+            if self._n_sub > 1:
+                sim.step(tau, period - sim.timestep)
+        self.q, self.v = sim.state()
+        sim.forward()
+        self._end = foot_contacts(self.mm, sim.data)
+        return record
+
+    def _tau(self, q: np.ndarray, cmd: Command) -> np.ndarray:
+        """Generalized torques of a command (thesis T mapped by the actuator map when tau is not given)."""
+        if cmd.tau is None:
+            cmd.tau = self.act.torque_map(q) @ cmd.T
+            cmd.tau[:6] = 0.0
+        return cmd.tau
+
+    def _record(self, phase: Phase, q: np.ndarray, v: np.ndarray, a: np.ndarray, cmd: Command,
+                tau: np.ndarray, feet: dict[str, FootContact]) -> tuple:
+        """What the log keeps of the state at a step's start (read right after its first MuJoCo step, whose
+        contact forces ``feet`` and acceleration ``a`` are those of that state)."""
+        model, d, data = self.model, self.rec_data, self.sim.data
+        fw = np.array([feet[f].wrench for f in FEET])
+        cop = np.array([feet[f].cop if feet[f].force[2] > 0 else np.full(3, np.nan) for f in FEET])
+        bf, bm = np.zeros((4, 3)), np.zeros((4, 3))
+        for i, f in enumerate(FEET):
+            c = feet[f]
+            for box, body in ((0, TOE_BODY[f]), (1, FOOT_BODY[f])):
+                sel = c.point_geom == box
+                if not sel.any():
+                    continue
+                bid = self._body[body]
+                R = data.xmat[bid].reshape(3, 3)
+                F = c.point_force[sel]
+                arm = c.points[sel] - data.xipos[bid]
+                bf[body - 1] = R.T @ F.sum(axis=0)
+                bm[body - 1] = R.T @ _cross(arm, F).sum(axis=0)
+        # Pinocchio at (q, v, a): task frames, the drift from the anchors, the dynamics residual
+        tau_c = self.map.tau_from_qfrc(q, data.qfrc_constraint)
+        residual = float(np.max(np.abs(pin.rnea(model, d, q, v, a) - tau - tau_c)))
+        pin.forwardKinematics(model, d, q, v)
+        pin.updateFramePlacements(model, d)
+        pos = ori = 0.0
+        for frame, M in self.anchors.placements.items():
+            err = M.actInv(d.oMf[self.hm.frame_id(frame)])
+            pos = max(pos, float(np.linalg.norm(err.translation)))
+            ori = max(ori, float(np.linalg.norm(pin.log3(err.rotation))))
+        fid = self.fid
+        hip_v = pin.getFrameVelocity(model, d, fid["Pc_17"], LWA).linear.copy()
+        T, T_cmd, sat, thdd_c = cmd.T, cmd.T_cmd, cmd.saturated, cmd.theta_ddot_cmd
+        if T is None:
+            T = T_cmd = self.act.thesis_torques(q, v, a, tau)
+            sat = self._no_sat
+        if T_cmd is None:
+            T_cmd = T
+        if sat is None:
+            sat = self._no_sat
+        if thdd_c is None:
+            thdd_c = np.full(26, np.nan)
+        o = d.oMf
+        return (q, v, a, thdd_c, T_cmd, T, sat, tau.copy(), pos, ori, residual,
+                o[fid["Pc_17"]].translation.copy(), hip_v, o[fid["O_17"]].rotation.copy(),
+                o[fid["P_tpR"]].translation.copy(), o[fid["P_tpL"]].translation.copy(),
+                o[fid["O_1"]].rotation.copy(), o[fid["O_2"]].rotation.copy(), bf, bm, fw, cop)
+
+    # ------------------------------------------------------------------ ground measures and falls
+    def _measure(self, t: float, q: np.ndarray, feet: dict[str, FootContact]) -> bool:
+        """Slip, tilt and penetration at the state (t, q) of a control update, whose kinematics and contact forces
+        ``feet`` MuJoCo's data hold (right after the update's first MuJoCo step); True when it is a fall (the
+        first is kept for :meth:`check`)."""
+        s, mm, data = self.settings, self.mm, self.sim.data
+        loaded = []
+        for f in FEET:
+            c = feet[f]
+            self.penetration_max = max(self.penetration_max, c.penetration)
+            for box, normal in ((0, c.normal_toe), (1, c.normal_main)):
+                self.slip[f][box].update(f, normal >= s.contact_force_N, sole_corners(mm, data, f, box))
+            if c.normal_main >= s.contact_force_N:
+                self.tilt_max = max(self.tilt_max, sole_tilt(mm, data, f))
+            if c.normal >= s.contact_force_N:
+                loaded.append(f)
+        if self.fall is not None:
+            return True
+        R17 = data.xmat[mm.base_body].reshape(3, 3)  # the lower trunk's link frame is O_17 (free joint frame)
+        trunk_tilt = float(np.arctan2(np.hypot(R17[0, 2], R17[1, 2]), R17[2, 2]))
+        hip_z = float(data.xipos[mm.base_body][2])     # Body-17 CoM
+        edge = ""
+        if len(loaded) == 1:
+            f = loaded[0]
+            cop = sole_cop(mm, data, feet[f], s.edge_tolerance_m)
+            tilt = sole_tilt(mm, data, f)
+            if cop is not None and cop.edges and tilt > s.edge_tilt_rad:
+                names = " and ".join(cop.edges)
+                edge = (f"the {FOOT_NAME[f]} foot, the only one on the ground, tipped onto its {names} edge"
+                        f"{'s (a corner)' if len(cop.edges) > 1 else ''} (sole tilt {math.degrees(tilt):.1f} deg, "
+                        f"centre of pressure {1000 * abs(cop.margin):.1f} mm from the edge)")
+        fall_h = self.sc.simulation.fall_height_m
+        if edge:
+            self.fall = (t, f"fall at t = {t:.3f} s: {edge}")
+        elif hip_z < fall_h:
+            self.fall = (t, f"fall at t = {t:.3f} s: hip CoM height {hip_z:.3f} m below {fall_h} m")
+        elif trunk_tilt > s.trunk_tilt_fall_rad:
+            self.fall = (t, f"fall at t = {t:.3f} s: lower trunk tilted {math.degrees(trunk_tilt):.1f} deg from "
+                            f"the vertical (limit {math.degrees(s.trunk_tilt_fall_rad):.0f} deg)")
+        return self.fall is not None
+
+    def check(self, t: float) -> None:
+        """Raise :class:`MujocoFall` if the state after the last step is a fall (module docstring)."""
+        if self.fall is not None:
+            raise MujocoFall(self.fall[1])
+
+    def touchdown_signal(self, foot: str) -> bool:
+        """True when ``foot``'s soles carry at least ``contact_force_N`` of normal force at the current state."""
+        return self._end[foot].normal >= self.settings.contact_force_N
+
+    def run_info(self) -> dict:
+        """For summary.json (SI units): fall, slip, tilt and penetration measures of the run."""
+        slip = max(m.max_slip[f] for f in FEET for m in self.slip[f])
+        return {"ground": {"fell": self.fall is not None,
+                           "fall_time_s": None if self.fall is None else float(self.fall[0]),
+                           "fall_reason": None if self.fall is None else self.fall[1],
+                           "foot_slip_max_m": float(slip), "foot_tilt_max_rad": float(self.tilt_max),
+                           "penetration_max_m": float(self.penetration_max),
+                           "control_period_s": self.settings.control_period_s,
+                           "timestep_s": self.sim.timestep}}
+
+    # ------------------------------------------------------------------ what the phase selector reads
+    def hip_com(self) -> np.ndarray:
+        """Body-17 CoM (world, m) at the current state (NaN when the state is not finite)."""
+        if all_finite(self.q):
+            pin.forwardKinematics(self.model, self.data, self.q)
+            return pin.updateFramePlacement(self.model, self.data, self.fid["Pc_17"]).translation.copy()
+        return np.full(3, np.nan)
+
+    def toe_point(self, foot: str) -> np.ndarray:
+        """Toe point P_tp of ``foot`` at the state of the last :meth:`hip_com`."""
+        return pin.updateFramePlacement(self.model, self.data, self.fid["P_tp" + foot]).translation.copy()
+
+    def toe_rotation(self, foot: str) -> np.ndarray:
+        """Orientation of the toe body of ``foot`` (O_1 / O_2) at the state of the last :meth:`hip_com`."""
+        return pin.updateFramePlacement(self.model, self.data, self.fid["O_1" if foot == "R" else "O_2"]
+                                        ).rotation.copy()
+
+    # ------------------------------------------------------------------ phase changes
+    def touchdown(self, t: float, phase: Phase, foot: str, key: str) -> None:
+        """Nothing: MuJoCo resolved the impact (no velocity reset)."""
+
+    def enter(self, phase: Phase) -> None:
+        """Start ``phase``: its held bodies are anchored where they are now (those held before keep their
+        anchors), for the controller's weld model."""
+        self.anchors = record_anchors(self.model, self.q, phase.contacts, previous=self.anchors)
+        self.phase = phase
+
+    # ------------------------------------------------------------------ logging
+    def build_log(self, rows: list[tuple]) -> SimLog:
+        """The log from the loop's rows (t, k, phase, nominal reference, controller hip reference, record)."""
+        hm = self.hm
+        n = len(rows)
+        if n == 0:
+            return SimLog()
+        (t, k, phase, ref, hip_ctrl, q, v, a, thdd_c, T_cmd, T, sat, tau, pos, ori, res, hip_p, hip_v, R17,
+         toe_R, toe_L, R1, R2, bf, bm, fw, cop) = zip(*rows)
+        Q, V, A = np.array(q), np.array(v), np.array(a)
+        fw = np.array(fw)
+        thesis = lambda X: hm.theta_sign * X[:, hm.theta_v_idx]  # noqa: E731 -- v-ordered arrays -> thesis
+        stance = {ph: [f in ph.stance_feet for f in FEET] for ph in Phase}
+        ftot = fw[:, :, :3].sum(axis=1)
+        mtot = fw[:, :, 3:].sum(axis=1)
+        zmp = np.full((n, 3), np.nan)
+        ok = ftot[:, 2] > 1e-9
+        zmp[ok] = np.stack([-mtot[ok, 1] / ftot[ok, 2], mtot[ok, 0] / ftot[ok, 2], np.zeros(ok.sum())], axis=1)
+        yaw0 = yaw_of(hm.spec.C0)
+        yaw, yaw_ref = np.empty(n), np.empty(n)
+        prev, prev_ref = yaw0, yaw0
+        for i in range(n):
+            prev = yaw[i] = unwrap_to(yaw_of(R17[i]), prev)
+            prev_ref = yaw_ref[i] = unwrap_to(yaw_of(ref[i].hip_R), prev_ref)
+        cols = dict(
+            t=np.array(t), phase=np.array(k), basic_phase=np.array([BASIC[ph] for ph in phase]), q=Q, v=V,
+            theta=hm.theta_sign * Q[:, hm.theta_q_idx], theta_dot=thesis(V), theta_ddot=thesis(A),
+            theta_ddot_cmd=np.array(thdd_c), T_cmd=np.array(T_cmd), T=np.array(T), saturated=np.array(sat),
+            tau=np.array(tau), hip_p=np.array(hip_p), hip_p_ref=np.array([r.hip_p for r in ref]),
+            hip_p_ctrl_ref=np.array(hip_ctrl), hip_v=np.array(hip_v), hip_v_ref=np.array([r.hip_v for r in ref]),
+            hip_R=np.array(R17), hip_R_ref=np.array([r.hip_R for r in ref]), hip_yaw=yaw, hip_yaw_ref=yaw_ref,
+            toe_R_p=np.array(toe_R), toe_R_p_ref=np.array([r.toe_R_p for r in ref]), toe_L_p=np.array(toe_L),
+            toe_L_p_ref=np.array([r.toe_L_p for r in ref]), foot_R_R=np.array(R1), foot_L_R=np.array(R2),
+            body_force=np.array(bf), body_moment=np.array(bm), foot_wrench=fw, cop=np.array(cop),
+            in_contact=np.array([stance[ph] for ph in phase]), zmp=zmp, drift_position=np.array(pos),
+            drift_orientation=np.array(ori), dynamics_residual=np.array(res))
+        return SimLog.from_columns(cols)
+
+
+__all__ = ["MujocoEngine", "MujocoEngineSettings", "MujocoFall"]
