@@ -89,7 +89,10 @@ class GaitSettings:
     support first (the weight shift onto the first stance foot), ``horizon_s`` of preview, ``passes`` multibody
     corrections of the cart-table plan, planned on a ``sample_s`` grid; the ZMP reference moves between the sole
     centres with a ``transfer`` profile.  In this gait a double support lasts its planned duration and touchdown
-    uses the inelastic impact law unless ``simulation.impact_law`` says otherwise."""
+    uses the inelastic impact law unless ``simulation.impact_law`` says otherwise, and the whole walk (the initial
+    stance included) runs ``hip_lowering_m`` below the path's ``Phip`` heights: a hip that sways over the stance
+    foot needs more reach of the legs (at sim 1's 0.93 m the planner cannot reach the feet on its first, 40 deg
+    turning step; 0.02 m lower it can).  The thesis gait ignores ``hip_lowering_m``."""
 
     hip_reference: str = "thesis"
     horizon_s: float = 1.6
@@ -97,6 +100,7 @@ class GaitSettings:
     passes: int = 2
     sample_s: float = 0.01
     transfer: str = "smoothstep"
+    hip_lowering_m: float = 0.02
 
     @property
     def is_zmp(self) -> bool:
@@ -118,6 +122,16 @@ class Scenario:
     source: str = "<dict>"
     controller_class: str | None = None   # 'package.module:ClassName' of a user's controller; None = the thesis's
     gait: GaitSettings = field(default_factory=GaitSettings)
+
+
+def _lowered(src: str, path: PathParams, dz: float) -> PathParams:
+    """``path`` with every hip waypoint ``dz`` m lower (the zmp gait's ``gait.hip_lowering_m``)."""
+    Phip = np.array(path.Phip, dtype=float)
+    Phip[:, 2] -= dz
+    if Phip[:, 2].min() <= HIP_HEIGHT.lo:
+        raise ScenarioError(f"{src}: gait.hip_lowering_m: {dz} m puts the hip at {Phip[:, 2].min():.3f} m, below "
+                            "the ground")
+    return replace(path, Phip=Phip)
 
 
 # --------------------------------------------------------------------------------------------- value ranges
@@ -414,8 +428,11 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
         "hip_reference": HIP_REFERENCES, "horizon_s": Num("a preview horizon in s", 0.05, 5.0),
         "lead_in_s": Num("a standing double support in s", 0.2, 5.0),
         "passes": Num("a count of multibody corrections", choices=(0, 1, 2, 3, 4, 5)),
-        "sample_s": Num("a planning step in s", 0.002, 0.05), "transfer": ZMP_TRANSFERS})
+        "sample_s": Num("a planning step in s", 0.002, 0.05), "transfer": ZMP_TRANSFERS,
+        "hip_lowering_m": Num("a hip lowering in m", 0.0, 0.15)})
     gait = replace(gait, passes=int(gait.passes))
+    if gait.is_zmp and gait.hip_lowering_m > 0.0:
+        path = _lowered(src, path, gait.hip_lowering_m)
     sim_raw = doc.get("simulation")
     if gait.is_zmp and not (isinstance(sim_raw, dict) and "impact_law" in sim_raw):
         sim = replace(sim, impact_law="inelastic")   # the zmp gait's default: no momentum from nowhere

@@ -42,11 +42,24 @@ def test_gait_section_defaults_and_impact_law():
     assert parse_scenario(d, "x").simulation.impact_law == "thesis"   # an explicit choice is kept
 
 
+def test_zmp_gait_walks_lower_by_hip_lowering():
+    file_z = np.array(SIM3["path"]["Phip"], dtype=float)[:, 2]
+    thesis = parse_scenario(copy.deepcopy(SIM3), "sim3")
+    assert np.array_equal(thesis.path.Phip[:, 2], file_z)                     # the thesis gait: the file's heights
+    zmp = parse_scenario(with_gait(SIM3), "sim3")
+    assert zmp.gait.hip_lowering_m == 0.02
+    assert np.allclose(zmp.path.Phip[:, 2], file_z - 0.02, rtol=0, atol=1e-15)   # round-off of one subtraction
+    assert np.array_equal(zmp.path.Phip[:, :2], thesis.path.Phip[:, :2])      # the footprint of the path is kept
+    low = parse_scenario(with_gait(SIM3, hip_lowering_m=0.0), "sim3")
+    assert np.array_equal(low.path.Phip, thesis.path.Phip)
+
+
 @pytest.mark.parametrize("gait, message", [
     ({"hip_reference": "zmp"}, "gait.hip_reference: expected one of thesis, zmp_preview, got 'zmp'"),
     ({"hip_reference": "zmp_preview", "horizon_s": 0}, "gait.horizon_s: expected a preview horizon in s"),
     ({"hip_reference": "zmp_preview", "passes": 1.5}, "gait.passes: expected a count of multibody corrections"),
     ({"hip_reference": "zmp_preview", "lead": 1}, "gait"),
+    ({"hip_reference": "zmp_preview", "hip_lowering_m": -0.01}, "gait.hip_lowering_m: expected a hip lowering in m"),
 ])
 def test_gait_section_bad_values_are_named(gait, message):
     d = copy.deepcopy(SIM3)
