@@ -54,6 +54,33 @@ def test_zmp_gait_walks_lower_by_hip_lowering():
     assert np.array_equal(low.path.Phip, thesis.path.Phip)
 
 
+PARAMS = ROOT / "scripts" / "params"
+
+
+@pytest.mark.parametrize("n", [1, 2, 3])
+def test_shipped_zmp_scenarios_add_only_the_gait_lines(n):
+    base = yaml.safe_load((PARAMS / f"sim{n}.yaml").read_text())
+    zmp = yaml.safe_load((PARAMS / f"sim{n}_zmp.yaml").read_text())
+    assert zmp.pop("gait") == {"hip_reference": "zmp_preview"} and zmp.pop("name") == f"sim{n}_zmp"
+    base.pop("name")
+    assert zmp == base
+
+
+def test_long_and_fast_scenarios_are_what_their_names_say():
+    sim3 = parse_scenario(copy.deepcopy(SIM3), "sim3")
+    long = parse_scenario(yaml.safe_load((PARAMS / "straight_60s_zmp.yaml").read_text()), "long")
+    fast = parse_scenario(yaml.safe_load((PARAMS / "sim3_fast_zmp.yaml").read_text()), "fast")
+    assert long.gait.is_zmp and fast.gait.is_zmp
+    p = long.path.Phip
+    assert np.max(np.abs(p[:, 0])) < 1e-3                     # straight: < 1 mm off the y axis over the walk
+    walking = sum(t * (1.0 + 1.0 / r) for t, r in zip(long.path.t_SSP, long.path.PTR))   # SSP + DSP = t_SSP / PTR
+    assert walking >= 60.0
+    ratio_v = np.asarray(fast.path.Vhip)[1:] / np.asarray(sim3.path.Vhip)[1:]
+    ratio_t = np.asarray(sim3.path.t_SSP) / np.asarray(fast.path.t_SSP)
+    assert np.allclose(ratio_v, 1.5, rtol=1e-9, atol=0) and np.allclose(ratio_t, 1.5, rtol=1e-9, atol=0)  # 10 digits in the file
+    assert np.array_equal(fast.path.Phip, parse_scenario(with_gait(SIM3), "x").path.Phip)   # the same footholds
+
+
 @pytest.mark.parametrize("gait, message", [
     ({"hip_reference": "zmp"}, "gait.hip_reference: expected one of thesis, zmp_preview, got 'zmp'"),
     ({"hip_reference": "zmp_preview", "horizon_s": 0}, "gait.horizon_s: expected a preview horizon in s"),
