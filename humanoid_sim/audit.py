@@ -80,6 +80,10 @@ class SoleGeometry:
         """(4, 3) corners of the whole sole in the main-body frame O_3 / O_4, m (counter-clockwise from +z)."""
         return self._rect(self.heel_back_x, self.toe_front_x, self.sole_z)
 
+    def heel_corners(self) -> np.ndarray:
+        """(4, 3) corners of the main-body part of the sole (heel to toe joint) in the main-body frame O_3 / O_4."""
+        return self._rect(self.heel_back_x, self.toe_joint[0], self.sole_z)
+
     def toe_corners(self) -> np.ndarray:
         """(4, 3) corners of the toe part of the sole (toe joint to toe tip) in the toe body frame O_1 / O_2."""
         jx, _, jz = self.toe_joint

@@ -83,7 +83,12 @@ def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[s
                                scenario.contact.friction_coefficient)
     except AuditError as exc:
         return {"error": str(exc)}, None
-    return report.summary(), report
+    out = report.summary()
+    if "landings" in result.extra:   # an engine that welds landing feet: what each touchdown did (landing.py)
+        from humanoid_sim.landing import landing_summary
+
+        out["landing"] = landing_summary(result.extra["landings"], scenario.contact.friction_coefficient)
+    return out, report
 
 
 def summarize_with_audit(result: SimResult, scenario: Any, engine: str, hm: Any,

@@ -91,7 +91,7 @@ def test_walk_row_of_failures():
     res = walk_row(broken, "pinocchio", "test")
     assert res["summary"] is None and res["row"]["failure_kind"] == "exception"
     assert res["row"]["reason"].startswith("ScenarioError: test: path.SW: expected a list of 8")
-    assert walk_row(SIM3, "mujoco")["row"]["reason"] == "ValueError: engine: 'mujoco' is not one of pinocchio, thesis"
+    assert walk_row(SIM3, "bullet")["row"]["reason"] == "ValueError: engine: 'bullet' is not one of pinocchio, thesis, mujoco"
 
 
 def test_torque_rms_against_the_norm():

@@ -33,7 +33,7 @@ def make_engine(name: str, hm: Any, scenario: Any, traj: Any, compiled: bool | N
         from humanoid_sim.engines.mujoco import MujocoEngine
 
         return MujocoEngine(hm, scenario, traj, **options)
-    raise ValueError(f"engine: {name!r} is not one of {ENGINE_NAMES}")
+    raise ValueError(f"engine: {name!r} is not one of {', '.join(ENGINE_NAMES)}")
 
 
 __all__ = ["ENGINE_NAMES", "make_engine"]

@@ -34,7 +34,9 @@ from humanoid_sim.contact import ContactDynamics, record_anchors
 from humanoid_sim.contact.inverse import symmetric_inertia
 from humanoid_sim.contact.wrenches import GroundReactionLog
 from humanoid_sim.controllers.base import Command, Observation
+from humanoid_sim.audit import SoleGeometry
 from humanoid_sim.impact import touchdown
+from humanoid_sim.landing import Landing, landing_record
 from humanoid_sim.integrator import RungeKutta
 from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import FOOT_SPECS, Phase
@@ -109,6 +111,8 @@ class WeldEngine:
         self.q = self.v = None
         self.anchors = None
         self.phase: Phase | None = None
+        self._sole = SoleGeometry.from_model(hm)
+        self.landings: list[Landing] = []
 
     # ------------------------------------------------------------------ state
     def start(self, q0: np.ndarray, phase: Phase) -> None:
@@ -116,6 +120,7 @@ class WeldEngine:
         self.q = np.array(q0, dtype=float)
         self.v = np.zeros(self.model.nv)
         self.phase = phase
+        self.landings = []
         self.anchors = record_anchors(self.model, self.q, phase.contacts)
         if self.support_kernel is not None:
             self.support_kernel.warm_up(self.q, len(self.rk.tab.c))
@@ -240,7 +245,12 @@ class WeldEngine:
         """The swing foot landed (end of SSP ``phase``): the velocity reset of 4.5 (weights ``reset.<key>``) or the
         inelastic impact, as the scenario's ``simulation.impact_law`` says."""
         res = touchdown(self.model, self.q, self.v, phase, self.sc.simulation.impact_law, w_adj=self.sc.W_adj.get(key))
+        self.landings.append(landing_record(self.model, self.proj_data, self.q, res, t, foot, self._sole))
         self.v = res.v_plus
+
+    def run_info(self) -> dict:
+        """For the run's summary: the landing audit records (:mod:`humanoid_sim.landing`), one per touchdown."""
+        return {"landings": list(self.landings)}
 
     def enter(self, phase: Phase) -> None:
         """Start ``phase``: weld its contacts where they are now (held bodies keep their anchors)."""
