@@ -26,7 +26,11 @@ Prints one JSON object:
   calls), ``mj_step_us`` (one MuJoCo step standing in double support, median of 1000), ``engine_us_per_update``
   (the engine's own work per control update: state map, contact forces, ground measures; from a 2 s standing run
   minus its controller and MuJoCo steps) and ``projected_real_time_factor`` = 1 / (rate x (controller + engine) +
-  1000 steps x mj_step) for a walk that does not fall.
+  1000 steps x mj_step) for a walk that does not fall;
+- ``gaits``: the same scenario with ``gait: {hip_reference: zmp_preview}`` added (issue #13) on the fast engine:
+  its ``real_time_factor`` (median of the repeats, in this same process, planning excluded), ``plan_s`` (building
+  the trajectory: ZMP preview and multibody correction, median), the simulated time and how it ended, and
+  ``ratio_to_thesis`` = its real-time factor / the thesis gait's (``real_time_factor`` above).
 """
 
 from __future__ import annotations
@@ -170,6 +174,31 @@ def mujoco_bench(hm, scenario, repeats: int) -> dict:
                                                  "engine": round(rate * engine_us * 1e-6, 4)}}
 
 
+def gait_bench(hm, scenario_path: Path, repeats: int, thesis_rtf: float) -> dict:
+    """The zmp-preview gait of the scenario (its file plus ``gait: {hip_reference: zmp_preview}``), fast engine."""
+    import yaml
+
+    from humanoid_sim.scenario import parse_scenario
+
+    doc = yaml.safe_load(scenario_path.read_text())
+    doc["gait"] = {"hip_reference": "zmp_preview"}
+    doc["name"] = f"{doc.get('name', scenario_path.stem)}_zmp"
+    scenario = parse_scenario(doc, str(scenario_path))
+    plans, walls = [], []
+    res = None
+    for _ in range(repeats):
+        w0 = time.perf_counter()
+        sim = Simulator(hm, scenario)
+        plans.append(time.perf_counter() - w0)
+        w0 = time.perf_counter()
+        res = sim.run()
+        walls.append(time.perf_counter() - w0)
+    rtf = res.sim_time / statistics.median(walls)
+    return {"scenario": scenario.name, "real_time_factor": round(rtf, 2), "plan_s": round(statistics.median(plans), 3),
+            "sim_time_s": round(res.sim_time, 6), "completed": bool(res.completed), "reason": res.reason,
+            "ratio_to_thesis": round(rtf / thesis_rtf, 3)}
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenario", type=Path, default=ROOT / "scripts" / "params" / "sim1.yaml")
@@ -235,6 +264,8 @@ def main(argv: list[str] | None = None) -> int:
         "kernel_load_s": round(kernel_s, 3),
         "breakdown": breakdown(hm, scenario, None),
     }
+    out["gaits"] = {"thesis": {"real_time_factor": round(rtf, 2)},
+                    "zmp_preview": gait_bench(hm, args.scenario, args.repeats, rtf)}
     out["mujoco"] = mujoco_bench(hm, scenario, args.repeats)
     print(json.dumps(out, indent=2))
     return 0
