@@ -7,7 +7,6 @@ equation).  Tracking is checked on the walk of design.md section 9."""
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 import pytest
@@ -211,13 +210,16 @@ def test_reference_beyond_the_end_is_held_at_its_last_value(ctrl):
     np.testing.assert_array_equal(a.com, b.com[:len(ref)])
 
 
-def test_sixty_second_plan_takes_well_under_a_second(ctrl):
-    times, ref, _ = walk_reference(n_steps=75)
+def test_sixty_second_plan_tracks_to_its_end(ctrl):
+    """A 60 s walk plans in one run (its time is bench.py's ``gaits.zmp_preview.plan_s`` business, not a test's)
+    and tracks at its end as in its middle: the servo's integral state does not wind up over 75 steps."""
+    times, ref, ssp = walk_reference(n_steps=75)
     assert times[-1] >= 59.0
-    t0 = time.perf_counter()
-    CartTablePreview(T, Z_C).run(ref)
-    # the brief: "well under a second or two"; measured ~0.1 s on one core of the shared machine
-    assert time.perf_counter() - t0 < 1.0
+    err = CartTablePreview(T, Z_C).run(ref).zmp_error
+    middle, end = err[(times > 20.0) & (times < 30.0) & ssp], err[(times > times[-1] - 10.0) & ssp]
+    assert end.max() <= 0.010                      # the issue's single-support bound
+    # the same steps repeat, so the steady state repeats: 1e-6 m allows the round-off of 6000 servo steps
+    assert abs(end.max() - middle.max()) < 1e-6
 
 
 # ------------------------------------------------------------------------------------------------ input errors
