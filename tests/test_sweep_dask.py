@@ -26,6 +26,7 @@ import pytest
 import yaml
 
 from humanoid_sim.audit import audit_results
+from humanoid_sim.landing import landing_summary
 from humanoid_sim.scenario import parse_scenario
 from humanoid_sim.simulate import Simulator
 from humanoid_sim.summary import summarize
@@ -80,6 +81,7 @@ def serial_summary(hm, doc: dict) -> dict:
     s = summarize(result, sc.name, "pinocchio")
     s["contact"] = audit_results({**result.log.arrays(), "phase_names": np.array([p.name for p in sim.traj.phases])},
                                  hm, sc.contact.friction_coefficient).summary()
+    s["contact"]["landing"] = landing_summary(result.extra["landings"], sc.contact.friction_coefficient)
     T = result.log.arrays()["T"]
     s["torque_rms_Nm"] = dict(zip(s["torque_peak_Nm"], np.sqrt(np.mean(T ** 2, axis=0)).tolist()))
     return s
