@@ -92,7 +92,9 @@ class GaitSettings:
     uses the inelastic impact law unless ``simulation.impact_law`` says otherwise, and the whole walk (the initial
     stance included) runs ``hip_lowering_m`` below the path's ``Phip`` heights: a hip that sways over the stance
     foot needs more reach of the legs (at sim 1's 0.93 m the planner cannot reach the feet on its first, 40 deg
-    turning step; 0.02 m lower it can).  The thesis gait ignores ``hip_lowering_m``."""
+    turning step; 0.02 m lower it can).  It starts from a ready stance (:mod:`humanoid_sim.gait.stance`): Body 17
+    moved so the whole-body CoM is ``ready_margin_m`` inside the lead-in's support polygon (0 = chapter 3's
+    initial stance).  The thesis gait ignores both."""
 
     hip_reference: str = "thesis"
     horizon_s: float = 1.6
@@ -101,6 +103,7 @@ class GaitSettings:
     sample_s: float = 0.01
     transfer: str = "smoothstep"
     hip_lowering_m: float = 0.02
+    ready_margin_m: float = 0.03
 
     @property
     def is_zmp(self) -> bool:
@@ -429,7 +432,8 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
         "lead_in_s": Num("a standing double support in s", 0.2, 5.0),
         "passes": Num("a count of multibody corrections", choices=(0, 1, 2, 3, 4, 5)),
         "sample_s": Num("a planning step in s", 0.002, 0.05), "transfer": ZMP_TRANSFERS,
-        "hip_lowering_m": Num("a hip lowering in m", 0.0, 0.15)})
+        "hip_lowering_m": Num("a hip lowering in m", 0.0, 0.15),
+        "ready_margin_m": Num("a CoM margin in m", 0.0, 0.1)})
     gait = replace(gait, passes=int(gait.passes))
     if gait.is_zmp and gait.hip_lowering_m > 0.0:
         path = _lowered(src, path, gait.hip_lowering_m)

@@ -22,8 +22,7 @@ from humanoid_sim.controllers.base import ControlContext, Controller
 from humanoid_sim.controllers.thesis import ThesisController
 from humanoid_sim.engines import make_engine
 from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
-from humanoid_sim.gait.zmp_walk import make_trajectory
-from humanoid_sim.initial import initial_configuration
+from humanoid_sim.gait.zmp_walk import initial_state, make_trajectory
 from humanoid_sim.loop import SimResult, run
 from humanoid_sim.model import HumanoidModel
 from humanoid_sim.phases import Phase
@@ -47,7 +46,7 @@ class Simulator:
         self.hm = hm
         self.sc = scenario
         self.model = hm.model
-        self.q0 = initial_configuration(hm, scenario.path)
+        self.q0 = initial_state(hm, scenario)
         self.traj = make_trajectory(hm, scenario, self.q0)
         self.engine = make_engine(engine, hm, scenario, self.traj, compiled=compiled)
         if controller is None:

@@ -310,6 +310,24 @@ def plan_hip(hm: Any, traj: ZmpPreviewTrajectory, q0: np.ndarray, horizon_s: flo
     return HipPlan(t=times, xy=res.hip_xy, vxy=res.hip_v, info=info)
 
 
+def initial_state(hm: Any, scenario: Any) -> np.ndarray:
+    """The walk's initial configuration: chapter 3's (:func:`humanoid_sim.initial.initial_configuration`), or for
+    the zmp gait its ready stance (:func:`.stance.ready_stance`, ``gait.ready_margin_m`` inside the lead-in's
+    support polygon)."""
+    from humanoid_sim.initial import initial_configuration
+
+    q0 = initial_configuration(hm, scenario.path)
+    g = scenario.gait
+    if not g.is_zmp or g.ready_margin_m <= 0.0:
+        return q0
+    from humanoid_sim.phases import Phase
+
+    from .stance import ready_stance
+
+    stance = Phase(ReferenceTrajectory(scenario.path).phases[0].name).support_foot
+    return ready_stance(hm, scenario.path, q0, stance, g.ready_margin_m)
+
+
 def make_trajectory(hm: Any, scenario: Any, q0: np.ndarray) -> ReferenceTrajectory | ZmpPreviewTrajectory:
     """The scenario's reference: chapter 3's trajectory (``gait.hip_reference: thesis``), or the planned
     :class:`ZmpPreviewTrajectory` (``zmp_preview``)."""
