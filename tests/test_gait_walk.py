@@ -156,6 +156,30 @@ def test_hip_reference_velocity_is_the_derivative_of_its_position(zmp_sim3):
             np.testing.assert_allclose(v6[:3], fd, atol=1e-6)
 
 
+def test_hip_acceleration_is_the_derivative_of_the_velocity(zmp_sim3):
+    """Both gaits' hip_acceleration against central differences of hip_reference's velocity (h = 1e-6 s:
+    truncation ~h^2 x snap, round-off ~1e-16 / 1e-6 = 1e-10; the zmp gait's Hermite acceleration jumps at the 10 ms
+    grid nodes, so the points keep 1e-4 s away from them)."""
+    from humanoid_sim.trajectory import ReferenceTrajectory
+
+    _, sim = zmp_sim3
+    h = 1e-6
+    curved = ReferenceTrajectory(parse_scenario(copy.deepcopy(SIM1), "sim1").path)   # arcs of 0.87-1.6 m
+    for tr in (sim.traj, sim.traj.inner, curved):
+        checked = 0
+        for k in range(min(6, len(tr.phases))):
+            ph = tr.phases[k]
+            for f in (0.23, 0.51, 0.77):
+                t = ph.t_start + f * ph.duration
+                if tr is sim.traj and abs(t / 0.01 - round(t / 0.01)) * 0.01 < 1e-4:
+                    continue
+                a6 = tr.hip_acceleration(k, t)
+                fd = (tr.hip_reference(k, t + h)[1] - tr.hip_reference(k, t - h)[1]) / (2 * h)
+                np.testing.assert_allclose(a6, fd, atol=1e-5)
+                checked += 1
+        assert checked >= 12
+
+
 def test_lead_in_yaw_meets_the_thesis_yaw_and_rate(zmp_sim3):
     """The lead-in's yaw cubic ends where chapter 3's first single support starts, at its rate (1e-12: the same
     formulas, evaluated at the boundary)."""

@@ -191,6 +191,18 @@ class ZmpPreviewTrajectory:
             yawd = v6[5]
         return p, np.array((v[0], v[1], 0.0, 0.0, 0.0, yawd)), R
 
+    def hip_acceleration(self, phase: int, t: float) -> np.ndarray:
+        """Body-17 CoM [linear; angular] acceleration (6,) at global t clamped to ``phase``: the planned hip's (the
+        cubic Hermite's second derivative) and the yaw's."""
+        k = self._check(phase)
+        tc = self._clamp(k, t)
+        _, _, a = self._hip(tc)
+        if k == 0:
+            yawdd = eval_cubic(self._lead_yaw, tc - self.phases[0].t_start)[2]
+        else:
+            yawdd = self.inner.hip_acceleration(k - 1, t - self.lead)[5]
+        return np.array((a[0], a[1], 0.0, 0.0, 0.0, yawdd))
+
     def toe_reference(self, phase: int, t: float, foot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         k = self._check(phase)
         if k == 0:

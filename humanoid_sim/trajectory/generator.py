@@ -433,6 +433,16 @@ class ReferenceTrajectory:
         v6 = np.array((R * thd * cp, R * thd * sp, 0.0, 0.0, 0.0, yawd))
         return p, v6, _rz(yaw)
 
+    def hip_acceleration(self, phase: int, t: float) -> np.ndarray:
+        """Body-17 CoM [linear; angular] acceleration (6,), world frame, m/s^2 and rad/s^2, at global time t clamped
+        to ``phase``: the time derivative of :meth:`hip_reference`'s velocity (for controllers that feed the
+        reference acceleration forward; the thesis's 5.1 does not use it)."""
+        ph, sg, tc = self._clamped(phase, t)
+        sp, cp, thd, thdd, _, _, yawdd = self._hip_scalars(ph, sg, tc)
+        R, s = sg.R, sg.s
+        return np.array((R * thdd * cp - s * R * thd * thd * sp, R * thdd * sp + s * R * thd * thd * cp, 0.0,
+                         0.0, 0.0, yawdd))
+
     def toe_reference(self, phase: int, t: float, foot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The controller's swing query: toe point (3,), [toe-point velocity; foot angular velocity] (6,) and
         toe-body orientation (3x3) of ``foot`` ("R"/"L") at global time t clamped to ``phase``."""
