@@ -142,6 +142,20 @@ class Actuators:
             B[np.ix_(self._vidx[sl], rows)] = Bg
         return B
 
+    def component_map(self, q: np.ndarray, data: pin.Data | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(P, exact): P (26 x nv) with T = P tau for the components of the revolute and spherical groups
+        (``exact`` True: T_group = B_g^-1 tau_group, as :meth:`thesis_torques` computes them); the universal
+        shoulders' components are read off the moment transmitted to the arm, not tau alone (``exact`` False, rows
+        of P zero).  A controller can then bound T linearly in tau.  ``data``: as :meth:`torque_map`."""
+        P = np.zeros((26, self.model.nv))
+        exact = np.zeros(26, dtype=bool)
+        for gi, ((rows, _, _, sl, _, _), Bg) in enumerate(zip(self._groups, self._blocks(q, data))):
+            if gi in self._moment_groups:
+                continue
+            P[np.ix_(rows, self._vidx[sl])] = np.linalg.inv(Bg)
+            exact[rows] = True
+        return P, exact
+
     def thesis_torques(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, tau: np.ndarray,
                        kin_data: pin.Data | None = None) -> np.ndarray:
         """T (26,, T-bar order, N m) of the motion (q, v, a) driven by generalized torques ``tau`` (nv,).

@@ -78,6 +78,7 @@ class ContactSettings:
 
 HIP_REFERENCES = ("thesis", "zmp_preview")
 ZMP_TRANSFERS = ("smoothstep", "linear")
+GAIT_CONTROLLERS = ("balance", "thesis")
 
 
 @dataclass(frozen=True)
@@ -94,7 +95,9 @@ class GaitSettings:
     foot needs more reach of the legs (at sim 1's 0.93 m the planner cannot reach the feet on its first, 40 deg
     turning step; 0.02 m lower it can).  It starts from a ready stance (:mod:`humanoid_sim.gait.stance`): Body 17
     moved so the whole-body CoM is ``ready_margin_m`` inside the lead-in's support polygon (0 = chapter 3's
-    initial stance).  The thesis gait ignores both."""
+    initial stance).  The thesis gait ignores both.  ``controller``: what executes the zmp gait when the scenario
+    names no ``controller_class``: ``balance`` (:class:`humanoid_sim.controllers.balance.BalanceController`, a QP
+    that keeps every ground reaction inside its sole and friction cone) or ``thesis`` (5.1/5.2, compiled)."""
 
     hip_reference: str = "thesis"
     horizon_s: float = 1.6
@@ -104,6 +107,7 @@ class GaitSettings:
     transfer: str = "smoothstep"
     hip_lowering_m: float = 0.02
     ready_margin_m: float = 0.03
+    controller: str = "balance"
 
     @property
     def is_zmp(self) -> bool:
@@ -433,7 +437,7 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
         "passes": Num("a count of multibody corrections", choices=(0, 1, 2, 3, 4, 5)),
         "sample_s": Num("a planning step in s", 0.002, 0.05), "transfer": ZMP_TRANSFERS,
         "hip_lowering_m": Num("a hip lowering in m", 0.0, 0.15),
-        "ready_margin_m": Num("a CoM margin in m", 0.0, 0.1)})
+        "ready_margin_m": Num("a CoM margin in m", 0.0, 0.1), "controller": GAIT_CONTROLLERS})
     gait = replace(gait, passes=int(gait.passes))
     if gait.is_zmp and gait.hip_lowering_m > 0.0:
         path = _lowered(src, path, gait.hip_lowering_m)

@@ -9,7 +9,8 @@
 
 The pieces live in :mod:`humanoid_sim.loop` (the one stepping loop), :mod:`humanoid_sim.engines` and
 :mod:`humanoid_sim.controllers`.  The controller is the scenario's ``controller_class`` when it names one, else
-the thesis's (:class:`humanoid_sim.controllers.thesis.ThesisController`).
+for the zmp gait ``gait.controller`` (the balance QP by default), else the thesis's
+(:class:`humanoid_sim.controllers.thesis.ThesisController`).
 """
 
 from __future__ import annotations
@@ -54,6 +55,10 @@ class Simulator:
                 from humanoid_sim.controllers.loading import load_controller
 
                 controller = load_controller(scenario.controller_class)
+            elif scenario.gait.is_zmp and scenario.gait.controller == "balance":
+                from humanoid_sim.controllers.balance import BalanceController
+
+                controller = BalanceController()
             else:
                 controller = ThesisController(compiled=compiled if engine in ("pinocchio", "mujoco") else False)
         self.controller = controller

@@ -17,7 +17,6 @@ from humanoid_sim.gait.zmp_walk import ZmpPreviewTrajectory, hermite
 from humanoid_sim.kernel import AVAILABLE as KERNEL
 from humanoid_sim.scenario import ScenarioError, parse_scenario
 from humanoid_sim.simulate import Simulator
-from humanoid_sim.summary import summarize
 
 ROOT = Path(__file__).resolve().parents[1]
 SIM3 = yaml.safe_load((ROOT / "scripts" / "params" / "sim3.yaml").read_text())
@@ -87,6 +86,7 @@ def test_long_and_fast_scenarios_are_what_their_names_say():
     ({"hip_reference": "zmp_preview", "passes": 1.5}, "gait.passes: expected a count of multibody corrections"),
     ({"hip_reference": "zmp_preview", "lead": 1}, "gait"),
     ({"hip_reference": "zmp_preview", "hip_lowering_m": -0.01}, "gait.hip_lowering_m: expected a hip lowering in m"),
+    ({"hip_reference": "zmp_preview", "controller": "mpc"}, "gait.controller: expected one of balance, thesis"),
 ])
 def test_gait_section_bad_values_are_named(gait, message):
     d = copy.deepcopy(SIM3)
@@ -248,28 +248,24 @@ def test_walk_completes_and_double_supports_last_their_planned_duration(zmp_walk
             assert abs((rec.t_end - rec.t_start) - nominal) <= 0.5 * h + 1e-9, rec
 
 
-def test_zmp_gait_moves_the_weight_over_the_stance_foot(hm, zmp_walk):
-    """The point of the gait, judged by the contact audit on the welded-foot model.  The thesis gait has its ZMP
-    outside the support polygon in 96-100 % of steps (issue #13; sim 3: 100 %) and its ankle-roll torques T3/T4
-    at the 150 N m limit.  This gait with the thesis's controller, as of this commit: 30 % outside (around each
-    double support, where the controller lags the planned CoM acceleration, and in the lead-in, where the trailing
-    foot is held by its toe body only), no saturation, T3/T4 100 N m.  The bounds below guard that progress; the issue's targets
-    (>= 99 % inside, T3/T4 <= 75 N m) are not met yet."""
-    sc, sim, res = zmp_walk
+def test_thesis_controller_on_the_plan_is_selectable(hm):
+    """gait.controller: thesis runs chapter 5's controller (compiled) on the planned hip; the audit then shows
+    why the gait's default is the balance controller (README: ZMP outside ~20-30 % of steps)."""
+    from humanoid_sim.controllers.thesis import ThesisController
+
+    sc = parse_scenario(with_gait(SIM3, controller="thesis"), "sim3")
+    sim = Simulator(hm, sc)
+    assert isinstance(sim.controller, ThesisController)
+    res = sim.run(t_end=2.0)
     rep = audit_results({**res.log.arrays(), "phase_names": np.array(res.phase_names)}, hm,
                         sc.contact.friction_coefficient)
-    s = summarize(res, sc.name, "pinocchio")
-    assert rep.zmp_outside.mean() < 0.40
-    assert s["saturated_fraction"] == 0.0
-    assert max(s["torque_peak_Nm"]["T3"], s["torque_peak_Nm"]["T4"]) < 125.0
-    assert s["hip_com_error_rms_m"] < 0.020 and s["hip_com_error_max_m"] < 0.045
+    assert 0.02 < rep.zmp_outside.mean() < 0.5
 
 
 def test_cop_in_sole_frame_agrees_with_the_world_audit(hm, zmp_walk):
     """plots_compare.cop_in_sole (the CoP moved into each foot's sole frame) against the audit's margin, computed
     on the world polygon: for a flat foot the distance to the sole rectangle's edge in the sole frame is the same
-    number up to the welded foot's tilt (the audit projects the tilted sole onto the ground, the sole frame measures
-    in the tilted plane: they differ by at most the sole's length times 1 - cos(tilt))."""
+    number up to the welded foot's tilt (see the bound below)."""
     from humanoid_sim.audit import SoleGeometry
     from humanoid_sim.plots_compare import cop_in_sole
 
@@ -278,10 +274,23 @@ def test_cop_in_sole_frame_agrees_with_the_world_audit(hm, zmp_walk):
     rep = audit_results(r, hm, sc.contact.friction_coefficient)
     cops = cop_in_sole(r, rep, hm)
     sole = SoleGeometry.from_model(hm)
-    from humanoid_sim.summary import contact_audit
+    import pinocchio as pin
 
-    tilt = contact_audit(res, sc, hm, res.phase_names)[0]["landing"]["tilt_max_rad"]
-    tol = (sole.toe_front_x - sole.heel_back_x) * (1.0 - math.cos(tilt)) + 1e-9   # + round-off of the transforms
+    from humanoid_sim.phases import FOOT_SPECS
+
+    # The audit projects the sole along the world z, the sole frame measures in its own plane, which is tilted by
+    # theta and sits h above z = 0 at the CoP: the two distances differ by at most L (1 - cos theta) + h tan theta
+    # (L: sole length), per row from the foot's placement.
+    L = sole.toe_front_x - sole.heel_back_x
+    d = hm.model.createData()
+
+    def bound(k: int, foot: str, xy: np.ndarray) -> float:
+        pin.framesForwardKinematics(hm.model, d, r["q"][k])
+        M = d.oMf[hm.frame_id(FOOT_SPECS[foot].main_frame)]
+        theta = math.acos(min(1.0, M.rotation[2, 2]))
+        h = abs(M.act(np.array([xy[0], xy[1], sole.sole_z]))[2])
+        return L * (1.0 - math.cos(theta)) + h * math.tan(theta) + 1e-9   # + round-off of the transforms
+
     for i, f in enumerate(("R", "L")):
         rows = np.flatnonzero(rep.loaded[:, i])
         assert len(rows) == len(cops[f]["xy"]) > 100
@@ -290,9 +299,10 @@ def test_cop_in_sole_frame_agrees_with_the_world_audit(hm, zmp_walk):
         inside = np.minimum.reduce([x - sole.heel_back_x, sole.toe_front_x - x, y + sole.width / 2,
                                     sole.width / 2 - y])
         margin = rep.cop_margin[rows[flat], i]
+        tol = np.array([bound(k, f, xy) for k, xy in zip(rows[flat], cops[f]["xy"][flat])])
         ok = inside > 0   # inside the rectangle the margin is the distance to the nearest edge
-        np.testing.assert_allclose(inside[ok], margin[ok], rtol=0, atol=tol)
-        assert np.all(margin[~ok] <= tol)
+        assert np.all(np.abs(inside[ok] - margin[ok]) <= tol[ok])
+        assert np.all(margin[~ok] <= tol[~ok])
 
 
 def test_landing_audit_of_the_zmp_walk(zmp_walk, hm):

@@ -1,0 +1,338 @@
+"""A whole-body controller that keeps every ground reaction feasible: task-space inverse dynamics as one QP.
+
+Why (issue #13).  The thesis's controller (5.1/5.2) cannot carry a balanced gait: its one-step prediction lags the
+planned CoM acceleration around every double support, its orientation task (the diagonal of the rotation matrix)
+has no first-order restoring term, and its double-support split of the ground reaction ignores the soles.  This
+controller, in the family of TSID / PlaCo / mink, solves at each call
+
+    min over x = [a (nv); lam (m)]   sum_tasks w_i |A_i a - b_i|^2  +  w_a |a|^2 + w_lam |lam|^2 + w_tau |tau|^2
+    s.t.  M a + h = S^T tau + J^T lam  on the six base rows and the locked toe rows (no actuator there),
+          J a = -gamma                  (the phase's welds and toe lock, as the engine enforces them),
+          every foot's ground wrench inside its sole and friction cone (linear inequalities in lam),
+
+and returns tau = (M a + h - J^T lam) on the joints, with (a, lam) as the motion (the weld engine then does not
+solve its forward dynamics again: the same (a, lam) by uniqueness).  The QP is solved by quadprog (Goldfarb-Idnani
+dual active set, exact for a dense strictly convex QP of this size).
+
+Contact model: the phase's welds (humanoid_sim.phases; the engine's ``WeldModel``, or on an engine without one --
+MuJoCo -- the same rows built here).  A foot's ground wrench is its weld's multipliers (LOCAL [force; moment] at
+the welded frame), the whole foot in single support (main body welded, toe locked: the whole sole), the toe body in
+double support for the trailing foot (its toe part of the sole).  The sole geometry is the URDF's
+(:class:`humanoid_sim.audit.SoleGeometry`), so the contact audit measures what is constrained here.  Per loaded
+foot: f_z >= 0; the centre of pressure inside the sole shrunk by ``cop_margin_ssp_m`` (single support) or
+``cop_margin_dsp_m``; tangential force inside the friction pyramid inscribed in the cone of
+``scenario.contact.friction_coefficient`` times ``friction_safety``; a torsion bound.  Every actuator component the
+thesis's saturation limits (humanoid_sim.actuators; T linear in tau) stays within ``torque_margin`` of its limit.
+When no motion satisfies them (the state is
+already beyond recovery), the CoP margins are dropped, then every inequality; ``run_info`` counts such calls.
+
+Tasks, world frame (LOCAL_WORLD_ALIGNED), each a PD on the error plus the reference's acceleration:
+- Body-17 CoM (frame Pc_17): ``traj.hip_reference`` / ``traj.hip_acceleration``; gains ``hip_omega`` (rad/s,
+  critically damped);
+- Body-17 orientation (O_17): the rotation-vector error log3(R_ref R^T), the reference's yaw rate and yaw
+  acceleration; ``trunk_omega``;
+- single support: the swing toe point, and the swing toe body's and main body's orientations (``traj.toe_reference``;
+  both bodies at the toe body's reference, so the foot stays flat and lands flat; the feed-forward acceleration is
+  the reference velocity's central difference over ``ff_dt_s``); ``swing_omega``;
+- every joint toward its initial angle (``posture_omega``; weights ``w_posture`` on the legs and the toe joints,
+  ``w_upper`` on the upper body).
+Units: SI (m, rad, N, N m, s).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+import pinocchio as pin
+
+from humanoid_sim.actuators import Actuators
+from humanoid_sim.audit import SoleGeometry
+from humanoid_sim.controllers.base import Command, ControlContext, ControllerError, Observation
+from humanoid_sim.phases import FOOT_SPECS, TOE_POINT_FRAME, Phase
+
+LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+@dataclass(frozen=True)
+class BalanceSettings:
+    """Gains (rad/s: the natural frequency of a critically damped PD), task weights and contact margins."""
+
+    hip_omega: float = 12.0
+    trunk_omega: float = 15.0
+    swing_omega: float = 25.0
+    posture_omega: float = 8.0
+    w_hip: float = 100.0
+    w_trunk: float = 30.0
+    w_swing: float = 100.0
+    w_posture: float = 0.05
+    w_upper: float = 1.0
+    w_acc: float = 1e-4
+    w_force: float = 1e-6
+    w_torque: float = 1e-5
+    cop_margin_ssp_m: float = 0.015
+    cop_margin_dsp_m: float = 0.010
+    friction_safety: float = 0.9
+    ff_dt_s: float = 1e-3
+    torque_margin: float = 0.98
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            x = getattr(self, f.name)
+            ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            lo_ok = x >= 0 if f.name.startswith(("w_", "cop_")) else x > 0
+            if not (ok and lo_ok) or (f.name in ("friction_safety", "torque_margin") and x > 1.0):
+                raise ValueError(f"BalanceSettings.{f.name} = {x!r}: expected a finite number "
+                                 f"{'>= 0' if f.name.startswith(('w_', 'cop_')) else '> 0'}"
+                                 f"{' and <= 1' if f.name in ('friction_safety', 'torque_margin') else ''}")
+
+
+def _pd(omega: float) -> tuple[float, float]:
+    return omega * omega, 2.0 * omega
+
+
+class BalanceController:
+    """See the module docstring.  ``settings``: :class:`BalanceSettings` (None = defaults)."""
+
+    name = "balance"
+
+    def __init__(self, settings: BalanceSettings | None = None) -> None:
+        if settings is not None and not isinstance(settings, BalanceSettings):
+            raise ValueError(f"settings: expected a BalanceSettings or None, got {type(settings).__name__}")
+        self.settings = settings or BalanceSettings()
+        self.calls = 0
+        self.relaxed_cop = 0
+        self.relaxed_all = 0
+
+    # ------------------------------------------------------------------ set-up
+    def setup(self, ctx: ControlContext) -> None:
+        from humanoid_sim.contact import ContactDynamics
+        from humanoid_sim.engines.weld import WeldModel
+
+        try:
+            import quadprog
+        except ImportError as exc:   # pragma: no cover - a declared dependency
+            raise ControllerError("the balance controller needs quadprog (pip install quadprog)") from exc
+        self._solve_qp = quadprog.solve_qp
+        hm = ctx.hm
+        self.hm, self.model, self.traj = hm, hm.model, ctx.traj
+        cons = ctx.constraints
+        if getattr(cons, "kind", None) == "oracle":
+            raise ControllerError("the balance controller runs on the weld model; the oracle engine offers the "
+                                  "thesis's 122 x 122 equations only (use --engine pinocchio or mujoco)")
+        self.weld = cons if isinstance(cons, WeldModel) else WeldModel(ContactDynamics(hm.model))
+        self.dyn = self.weld.dyn
+        self.act = Actuators(hm)
+        self.sole = SoleGeometry.from_model(hm)
+        mu = float(ctx.scenario.contact.friction_coefficient) * self.settings.friction_safety
+        self.mu = mu / math.sqrt(2.0)          # the pyramid |fx|, |fy| <= mu' fz lies inside the cone |f_t| <= mu fz
+        # a sole spinning about its CoP resists with at most ~ mu fz times a third of its half-width (a uniform
+        # pressure on a disc of that radius gives 2/3 r): conservative, the yaw moment a weld can otherwise hold
+        self.torsion = mu * self.sole.width / 6.0
+        fid = hm.frame_id
+        self.fid = {n: fid(n) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2", "O_3", "O_4")}
+        self.theta0 = hm.theta_from_q(ctx.q0)
+        nv = self.model.nv
+        self.nv = nv
+        self._Jpost = np.zeros((26, nv))                            # theta_dot = Jpost v (q = sign * theta)
+        self._Jpost[np.arange(26), np.asarray(hm.theta_v_idx, dtype=int)] = hm.theta_sign
+        self._upper = np.zeros(26, dtype=bool)
+        self._upper[16:] = True                                     # theta18..theta27 (eq. 4.5)
+        s = self.settings
+        self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
+
+    def run_info(self) -> dict:
+        """For the run's summary: calls, and calls whose contact constraints had to be relaxed."""
+        return {"balance_calls": self.calls, "balance_relaxed_cop": self.relaxed_cop,
+                "balance_relaxed_all": self.relaxed_all}
+
+    # ------------------------------------------------------------------ one call
+    def __call__(self, obs: Observation) -> Command:
+        self.calls += 1
+        k, phase, t, q, v = obs.k, obs.phase, obs.t, obs.q, obs.v
+        s = self.settings
+        model, d = self.model, self.dyn.data
+        rows = self.dyn.prepare(phase.contacts, obs.anchors, q, v)   # kinematics, Jacobians, M (upper), nle
+        pin.updateFramePlacements(model, d)
+        nv, m = self.nv, rows.m
+        M = np.triu(d.M) + np.triu(d.M, 1).T
+        h = d.nle.copy()
+
+        A_list: list[np.ndarray] = []
+        b_list: list[np.ndarray] = []
+        w_list: list[np.ndarray] = []
+
+        def task(J: np.ndarray, acc_des: np.ndarray, drift: np.ndarray, w: float) -> None:
+            A_list.append(J)
+            b_list.append(acc_des - drift)
+            w_list.append(np.full(len(acc_des), w))
+
+        # Body-17 CoM
+        p_ref, v6_ref, R_ref = self.traj.hip_reference(k, t)
+        a6_ref = self.traj.hip_acceleration(k, t)
+        f = self.fid["Pc_17"]
+        Jp = pin.getFrameJacobian(model, d, f, LWA)
+        p = d.oMf[f].translation
+        vel = pin.getFrameVelocity(model, d, f, LWA)
+        acc0 = pin.getFrameClassicalAcceleration(model, d, f, LWA)
+        kp, kd = _pd(s.hip_omega)
+        task(Jp[:3], a6_ref[:3] + kp * (p_ref - p) + kd * (v6_ref[:3] - vel.linear), acc0.linear, s.w_hip)
+        # Body-17 orientation
+        f = self.fid["O_17"]
+        Jo = pin.getFrameJacobian(model, d, f, LWA)
+        R = d.oMf[f].rotation
+        w_now = pin.getFrameVelocity(model, d, f, LWA).angular
+        alpha0 = pin.getFrameAcceleration(model, d, f, LWA).angular
+        kp, kd = _pd(s.trunk_omega)
+        task(Jo[3:], a6_ref[3:] + kp * pin.log3(R_ref @ R.T) + kd * (v6_ref[3:] - w_now), alpha0, s.w_trunk)
+        # swing foot
+        info = self.traj.phases[k]
+        if info.swing_foot is not None:
+            foot = info.swing_foot
+            pt, v6, Rr = self.traj.toe_reference(k, t, foot)
+            hdt = s.ff_dt_s
+            a_ff = (self.traj.toe_reference(k, t + hdt, foot)[1] - self.traj.toe_reference(k, t - hdt, foot)[1]) \
+                / (2.0 * hdt)
+            fpt = self.fid[TOE_POINT_FRAME[foot]]
+            ftoe = self.fid[FOOT_SPECS[foot].toe_frame]
+            kp, kd = _pd(s.swing_omega)
+            Jpt = pin.getFrameJacobian(model, d, fpt, LWA)
+            vpt = pin.getFrameVelocity(model, d, fpt, LWA).linear
+            task(Jpt[:3], a_ff[:3] + kp * (pt - d.oMf[fpt].translation) + kd * (v6[:3] - vpt),
+                 pin.getFrameClassicalAcceleration(model, d, fpt, LWA).linear, s.w_swing)
+            Jt = pin.getFrameJacobian(model, d, ftoe, LWA)
+            wt = pin.getFrameVelocity(model, d, ftoe, LWA).angular
+            task(Jt[3:], a_ff[3:] + kp * pin.log3(Rr @ d.oMf[ftoe].rotation.T) + kd * (v6[3:] - wt),
+                 pin.getFrameAcceleration(model, d, ftoe, LWA).angular, s.w_swing)
+            # the swing foot's main body at the same orientation: a flat foot (toe joint straight) lands flat
+            fmain = self.fid[FOOT_SPECS[foot].main_frame]
+            Jm = pin.getFrameJacobian(model, d, fmain, LWA)
+            wm = pin.getFrameVelocity(model, d, fmain, LWA).angular
+            task(Jm[3:], a_ff[3:] + kp * pin.log3(Rr @ d.oMf[fmain].rotation.T) + kd * (v6[3:] - wm),
+                 pin.getFrameAcceleration(model, d, fmain, LWA).angular, s.w_swing)
+        # posture (thesis joint angles toward the initial ones)
+        th = self.hm.theta_from_q(q)
+        Jpost = self._Jpost
+        thd = Jpost @ v
+        kp, kd = _pd(s.posture_omega)
+        A_list.append(Jpost)
+        b_list.append(kp * (self.theta0 - th) - kd * thd)
+        w_list.append(self._w_joint)
+
+        A = np.vstack(A_list)
+        b = np.concatenate(b_list)
+        w = np.concatenate(w_list)
+        n = nv + m
+        G = np.zeros((n, n))
+        WA = A * w[:, None]
+        G[:nv, :nv] = A.T @ WA
+        G[np.arange(nv), np.arange(nv)] += s.w_acc
+        G[np.arange(nv, n), np.arange(nv, n)] += s.w_force
+        g = np.zeros(n)
+        g[:nv] = WA.T @ b
+        # joint torques tau = M a + h - J^T lam (joint rows): in double support the feet can squeeze or twist each
+        # other through the ground without changing the motion; the smallest torques pick the split
+        J = rows.J
+        act = rows.actuated
+        Tx = np.hstack([M[act], -J[:, act].T])
+        G += s.w_torque * (Tx.T @ Tx)
+        g -= s.w_torque * (Tx.T @ h[act])
+
+        # equalities: base rows and locked rows of M a + h - J^T lam = 0; J a = -gamma
+        unact = np.concatenate([np.arange(6), rows.lock_v]).astype(int)
+        Ceq = np.zeros((len(unact) + m, n))
+        beq = np.zeros(len(unact) + m)
+        Ceq[:len(unact), :nv] = M[unact]
+        Ceq[:len(unact), nv:] = -J[:, unact].T
+        beq[:len(unact)] = -h[unact]
+        Ceq[len(unact):, :nv] = J
+        beq[len(unact):] = -rows.rhs_shift
+
+        Cin, bin_, cop_rows = self._contact_inequalities(rows, phase, n, nv)
+        # actuator limits: |T| <= limit for the components that are linear in tau (T = P tau, tau = Tx x + h)
+        P, exact = self.act.component_map(q, d)
+        P, lim = P[exact], self.act.limits[exact] * self.settings.torque_margin
+        PT = P[:, act] @ Tx
+        Ph = P[:, act] @ h[act]
+        Cin = np.vstack([Cin, -PT, PT])
+        bin_ = np.concatenate([bin_, Ph - lim, -Ph - lim])
+        cop_rows = np.concatenate([cop_rows, np.zeros(2 * len(lim), dtype=bool)])
+        x, level = self._solve(G, g, Ceq, beq, Cin, bin_, cop_rows)
+        a, lam = x[:nv], x[nv:]
+        tau = M @ a + h - J.T @ lam
+        tau[:6] = 0.0
+        tau[rows.lock_v] = 0.0
+        T_cmd = self.act.thesis_torques(q, v, a, tau, kin_data=d)
+        T_sat, sat = self.act.saturate(T_cmd)
+        extra = {"balance_level": level}
+        if sat.any():
+            B = self.act.torque_map(q, d)
+            tau = tau + B @ (T_sat - T_cmd)
+            tau[:6] = 0.0
+            return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, extra=extra)
+        return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=Jpost @ a, motion=(a, lam),
+                       motion_model=self.weld, extra=extra)
+
+    # ------------------------------------------------------------------ contact constraints
+    def _contact_inequalities(self, rows, phase: Phase, n: int, nv: int
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """C x >= b rows for every welded foot body (see the module docstring); ``cop`` marks the CoP rows."""
+        sole = self.sole
+        hw = sole.width / 2.0
+        mu = self.mu
+        margin = self.settings.cop_margin_dsp_m if phase.is_double_support else self.settings.cop_margin_ssp_m
+        C, bvec, cop = [], [], []
+        for i, frame in enumerate(rows.contacts.welds):
+            c0 = nv + 6 * i
+            if frame in ("O_3", "O_4"):              # main body (toe locked): the whole sole, main-body frame
+                x_lo, x_hi, zs = sole.heel_back_x, sole.toe_front_x, sole.sole_z
+            else:                                    # toe body: the toe part, toe-body frame
+                jx, _, jz = sole.toe_joint
+                x_lo, x_hi, zs = 0.0, sole.toe_front_x - jx, sole.sole_z - jz
+            # lam[c0 : c0 + 6] = [fx fy fz nx ny nz] at the frame origin; moments about the sole-plane point
+            # (0, 0, zs): n'x = nx + zs fy, n'y = ny - zs fx; CoP x = -n'y / fz, y = n'x / fz
+            fx, fy, fz, nx, ny = c0, c0 + 1, c0 + 2, c0 + 3, c0 + 4
+
+            def row(coefs: dict[int, float], is_cop: bool = False) -> None:
+                r = np.zeros(n)
+                for j, cval in coefs.items():
+                    r[j] += cval
+                C.append(r)
+                bvec.append(0.0)
+                cop.append(is_cop)
+
+            row({fz: 1.0})
+            row({fz: mu, fx: 1.0})
+            row({fz: mu, fx: -1.0})
+            row({fz: mu, fy: 1.0})
+            row({fz: mu, fy: -1.0})
+            lo, hi = x_lo + margin, x_hi - margin
+            row({ny: -1.0, fx: zs, fz: -lo}, True)      # -n'y - lo fz >= 0
+            row({ny: 1.0, fx: -zs, fz: hi}, True)       # n'y + hi fz >= 0
+            row({fz: self.torsion, c0 + 5: 1.0})       # |n_z| <= torsion fz (yaw friction of the sole)
+            row({fz: self.torsion, c0 + 5: -1.0})
+            ylo, yhi = -hw + margin, hw - margin
+            row({nx: 1.0, fy: zs, fz: -ylo}, True)      # n'x - ylo fz >= 0
+            row({nx: -1.0, fy: -zs, fz: yhi}, True)     # yhi fz - n'x >= 0
+        if not C:
+            return np.zeros((0, n)), np.zeros(0), np.zeros(0, dtype=bool)
+        return np.array(C), np.array(bvec), np.array(cop, dtype=bool)
+
+    def _solve(self, G, g, Ceq, beq, Cin, bin_, cop_rows) -> tuple[np.ndarray, int]:
+        """quadprog with the contact inequalities; relaxed (CoP rows dropped, then all) when infeasible."""
+        meq = len(beq)
+        for level, keep in ((0, np.ones(len(bin_), dtype=bool)), (1, ~cop_rows), (2, np.zeros(len(bin_), bool))):
+            C = np.vstack([Ceq, Cin[keep]]).T
+            bb = np.concatenate([beq, bin_[keep]])
+            try:
+                x = self._solve_qp(G, g, C, bb, meq)[0]
+            except ValueError:
+                continue
+            if level == 1:
+                self.relaxed_cop += 1
+            elif level == 2:
+                self.relaxed_all += 1
+            return x, level
+        raise ControllerError("balance controller: the QP has no solution even without contact inequalities "
+                              "(dependent constraint rows?)")

@@ -1,0 +1,170 @@
+"""The balance controller (humanoid_sim/controllers/balance.py) against independent computations: the weld engine's
+own forward dynamics, Newton's law for the whole robot, the audit's sole polygons, the actuator map; and the issue
+#13 acceptance on sim 3's zmp walk, judged by the contact audit."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+
+from humanoid_sim.actuators import Actuators
+from humanoid_sim.audit import FLAT, SoleGeometry, signed_distance, sole_polygons
+from humanoid_sim.controllers.balance import BalanceController, BalanceSettings
+from humanoid_sim.controllers.base import ControlContext, Observation
+from humanoid_sim.phases import Phase
+from humanoid_sim.scenario import parse_scenario
+from humanoid_sim.simulate import Simulator
+from humanoid_sim.summary import contact_audit, summarize
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def sc():
+    return parse_scenario(yaml.safe_load((ROOT / "scripts" / "params" / "sim3_zmp.yaml").read_text()), "sim3_zmp")
+
+
+def _state_at(hm, sc, t_end):
+    """A zmp walk stopped at t_end: the simulator and the observation its controller would get next."""
+    sim = Simulator(hm, sc)
+    assert isinstance(sim.controller, BalanceController)      # the zmp gait's default executor
+    res = sim.run(t_end=t_end)
+    k = len(res.phases) - 1
+    eng = sim.engine
+    obs = Observation(t=res.sim_time, k=k, phase=Phase(res.phases[-1].name), q=eng.q.copy(), v=eng.v.copy(),
+                      anchors=eng.anchors)
+    return sim, obs
+
+
+@pytest.fixture(scope="module", params=[2.9, 1.72], ids=["single_support", "double_support"])
+def state(request, hm, sc):
+    sim, obs = _state_at(hm, sc, request.param)
+    assert obs.phase.is_double_support == (request.param == 1.72)
+    return sim, obs
+
+
+def test_torques_reproduce_the_motion_through_the_engines_forward_dynamics(state):
+    sim, obs = state
+    cmd = sim.controller(obs)
+    a, lam = cmd.motion
+    fwd = sim.engine.dyn.forward(obs.phase.contacts, obs.anchors, obs.q, obs.v, cmd.tau)
+    # 1e-7: the KKT solve's round-off on accelerations of ~10 m/s^2 and multipliers of ~500 N
+    np.testing.assert_allclose(fwd.a, a, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(fwd.lam, lam, rtol=0, atol=1e-6)
+    assert np.all(cmd.tau[:6] == 0.0)
+
+
+def test_ground_forces_obey_newton_for_the_whole_robot(hm, state):
+    sim, obs = state
+    cmd = sim.controller(obs)
+    a, lam = cmd.motion
+    model, d = hm.model, hm.model.createData()
+    pin.centerOfMass(model, d, obs.q, obs.v, a)
+    mass = sum(model.inertias[j].mass for j in range(1, model.njoints))
+    pin.framesForwardKinematics(model, d, obs.q)
+    force = np.zeros(3)
+    for i, frame in enumerate(obs.phase.contacts.welds):
+        force += d.oMf[hm.frame_id(frame)].rotation @ lam[6 * i:6 * i + 3]
+    # 1e-6 N: the same round-off, on forces of ~540 N
+    np.testing.assert_allclose(force, mass * (d.acom[0] - model.gravity.linear), rtol=0, atol=1e-6)
+
+
+def test_actuator_component_map_equals_the_thesis_torques(hm):
+    act = Actuators(hm)
+    rng = np.random.default_rng(3)
+    q = pin.randomConfiguration(hm.model, -0.5 * np.ones(hm.model.nq), 0.5 * np.ones(hm.model.nq))
+    q[3:7] /= np.linalg.norm(q[3:7])
+    v, a, tau = (rng.normal(0, 1, hm.model.nv) for _ in range(3))
+    tau[:6] = 0.0
+    P, exact = act.component_map(q)
+    assert exact.sum() == 22 and not exact[[19, 20, 21, 22]].any()   # the two universal shoulders are read off RNEA
+    # 1e-9: 3 x 3 block inverses against the thesis_torques' solves, torques of ~1 N m
+    np.testing.assert_allclose((P @ tau)[exact], act.thesis_torques(q, v, a, tau)[exact], rtol=0, atol=1e-9)
+
+
+class _Pushed:
+    """The walk's trajectory with the hip reference moved 0.1 m sideways: a demand no sole can carry."""
+
+    def __init__(self, traj, dx):
+        self._traj, self._dx = traj, np.array([dx, 0.0, 0.0])
+
+    def __getattr__(self, name):
+        return getattr(self._traj, name)
+
+    def hip_reference(self, k, t):
+        p, v, R = self._traj.hip_reference(k, t)
+        return p + self._dx, v, R
+
+
+def _world_cop_margin(hm, q, frame, lam6):
+    """The weld's ground wrench as the audit sees it: world force and moment, CoP on z = 0, distance to the
+    sole's world polygon (audit.sole_polygons).  Also returns how far that can differ from the controller's CoP on
+    the sole's own plane: the sole plane's height above z = 0 times |f_t| / f_z (the CoP of a wrench moves along
+    the force's line between the two planes), plus the tilt's effect (second order, < 1e-5 m here)."""
+    d = hm.model.createData()
+    pin.framesForwardKinematics(hm.model, d, q)
+    M = d.oMf[hm.frame_id(frame)]
+    f = M.rotation @ lam6[:3]
+    n = M.rotation @ lam6[3:] + np.cross(M.translation, f)
+    cop = np.array([-n[1] / f[2], n[0] / f[2]])
+    kind = np.array([[FLAT, 0] if frame == "O_3" else [0, FLAT]])
+    poly = [p for p in sole_polygons(hm, q[None], kind)[0] if p is not None][0]
+    sole_z = (M.act(np.array([0.0, 0.0, SoleGeometry.from_model(hm).sole_z])))[2]
+    return signed_distance(cop, poly), abs(sole_z) * math.hypot(f[0], f[1]) / f[2] + 1e-5
+
+
+def test_a_demand_beyond_the_sole_puts_the_cop_on_the_margin(hm, sc):
+    sim, obs = _state_at(hm, sc, 2.9)
+    assert obs.phase in (Phase.LFFSSP, Phase.RFFSSP)
+    frame = "O_4" if obs.phase is Phase.LFFSSP else "O_3"
+    ctrl = sim.controller
+    free, _ = _world_cop_margin(hm, obs.q, frame, ctrl(obs).motion[1][:6])
+    assert free > 0.02                                   # the walk itself: well inside
+    ctx = ControlContext(hm, sc, _Pushed(sim.traj, 0.1), sim.q0, "pinocchio", sim.engine.constraints)
+    pushed = BalanceController()
+    pushed.setup(ctx)
+    lam = pushed(obs).motion[1]
+    margin, tol = _world_cop_margin(hm, obs.q, frame, lam[:6])
+    assert tol < 1e-3                                    # the sole sits < 1 mm above the ground: a sharp check
+    assert margin == pytest.approx(BalanceSettings().cop_margin_ssp_m, abs=tol)   # on the shrunk boundary
+    loose = BalanceController(BalanceSettings(cop_margin_ssp_m=0.0))
+    loose.setup(ctx)
+    margin, tol = _world_cop_margin(hm, obs.q, frame, loose(obs).motion[1][:6])
+    assert margin == pytest.approx(0.0, abs=tol)         # no margin asked: on the sole's edge
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("hip_omega", 0.0, "BalanceSettings.hip_omega = 0.0: expected a finite number > 0"),
+    ("w_hip", -1.0, "BalanceSettings.w_hip = -1.0: expected a finite number >= 0"),
+    ("friction_safety", 1.5, "BalanceSettings.friction_safety = 1.5: expected a finite number > 0 and <= 1"),
+    ("cop_margin_ssp_m", float("nan"), "BalanceSettings.cop_margin_ssp_m = nan"),
+])
+def test_bad_settings_are_named(field, value, message):
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        BalanceSettings(**{field: value})
+
+
+def test_zmp_walk_is_feasible_on_welded_feet(hm, sc):
+    """Issue #13's acceptance on sim 3 with only the gait lines added, judged by the contact audit."""
+    sim = Simulator(hm, sc)
+    res = sim.run()
+    assert res.completed, res.reason
+    s = summarize(res, sc.name, "pinocchio")
+    c, rep = contact_audit(res, sc, hm, res.phase_names)
+    assert c["zmp_outside_fraction"] <= 0.01
+    assert max(c["cop_outside_fraction"].values()) <= 0.01
+    single = np.array([str(p).endswith("SSP") for p in rep.phase_name])
+    loaded = rep.loaded & single[:, None]
+    assert np.min(rep.cop_margin[loaded]) >= 0.010                      # 10 mm in single support
+    assert s["saturated_fraction"] == 0.0
+    assert max(s["torque_peak_Nm"]["T3"], s["torque_peak_Nm"]["T4"]) <= 75.0
+    assert s["hip_com_error_rms_m"] <= 0.015 and s["hip_com_error_max_m"] <= 0.040
+    landing = c["landing"]
+    assert landing["tilt_max_rad"] <= math.radians(0.5) and landing["lowest_corner_m"] >= -0.001
+    assert landing["inside_cone"] == landing["count"] == 8
+    assert sim.controller.run_info()["balance_relaxed_cop"] == 0
