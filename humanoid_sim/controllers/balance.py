@@ -6,18 +6,27 @@ has no first-order restoring term, and its double-support split of the ground re
 controller, in the family of TSID / PlaCo / mink, solves at each call
 
     min over x = [a (nv); lam (m)]   sum_tasks w_i |A_i a - b_i|^2  +  w_a |a|^2 + w_lam |lam|^2 + w_tau |tau|^2
-    s.t.  M a + h = S^T tau + J^T lam  on the six base rows and the locked toe rows (no actuator there),
+    s.t.  M a + h = S^T tau + J^T lam  on the six base rows (no actuator there),
           J a = -gamma                  (the phase's welds and toe lock, as the engine enforces them),
+          lam_lock = 0                  (the stance toe's motor holds the lock, not a constraint force),
           every foot's ground wrench inside its sole and friction cone (linear inequalities in lam),
 
 and returns tau = (M a + h - J^T lam) on the joints, with (a, lam) as the motion (the weld engine then does not
 solve its forward dynamics again: the same (a, lam) by uniqueness).  The QP is solved by quadprog (Goldfarb-Idnani
 dual active set, exact for a dense strictly convex QP of this size).
 
+The stance foot's toe joint: the thesis leaves its torque zero and lets the lock hold it (K-10); on real ground
+nothing locks it, so here its motor holds it (the lock's multiplier is zero, the torque within the toe's 30 N m
+limit), which on the weld engine is the same motion.
+
 Contact model: the phase's welds (humanoid_sim.phases; the engine's ``WeldModel``, or on an engine without one --
 MuJoCo -- the same rows built here).  A foot's ground wrench is its weld's multipliers (LOCAL [force; moment] at
 the welded frame), the whole foot in single support (main body welded, toe locked: the whole sole), the toe body in
-double support for the trailing foot (its toe part of the sole).  The sole geometry is the URDF's
+double support for the trailing foot (its toe part of the sole).  Known limit on real ground: the welded model puts a
+flat foot's whole ground wrench on its main body, so the toe motor is not asked to hold the ground force under the
+toe part; on MuJoCo the stance foot folds at its toe joint when its CoP passes the joint line (keeping the CoP behind
+the joint line instead makes the welded walks fall: the plan's ZMP needs the whole sole).  The sole geometry is
+the URDF's
 (:class:`humanoid_sim.audit.SoleGeometry`), so the contact audit measures what is constrained here.  Per loaded
 foot: f_z >= 0; the centre of pressure inside the sole shrunk by ``cop_margin_ssp_m`` (single support) or
 ``cop_margin_dsp_m``; tangential force inside the friction pyramid inscribed in the cone of
@@ -33,7 +42,11 @@ Tasks, world frame (LOCAL_WORLD_ALIGNED), each a PD on the error plus the refere
   acceleration; ``trunk_omega``;
 - single support: the swing toe point, and the swing toe body's and main body's orientations (``traj.toe_reference``;
   both bodies at the toe body's reference, so the foot stays flat and lands flat; the feed-forward acceleration is
-  the reference velocity's central difference over ``ff_dt_s``); ``swing_omega``;
+  the reference velocity's central difference over ``ff_dt_s``); ``swing_omega``; a swing that outlasts its
+  nominal duration (on real ground the foot may hover a fraction of a millimetre above it) keeps lowering the
+  foot at ``landing_search_mps`` until touchdown is sensed;
+- double support: the trailing foot (held by its toe) lifts its heel by ``heel_lift_rad`` (smoothstep over the
+  phase or ``heel_lift_time_s``, whichever is shorter): the toe-off the toe weld assumes;
 - every joint toward its initial angle (``posture_omega``; weights ``w_posture`` on the legs and the toe joints,
   ``w_upper`` on the upper body).
 Units: SI (m, rad, N, N m, s).
@@ -76,15 +89,20 @@ class BalanceSettings:
     friction_safety: float = 0.9
     ff_dt_s: float = 1e-3
     torque_margin: float = 0.98
+    landing_search_mps: float = 0.05
+    landing_depth_m: float = 0.0
+    heel_lift_rad: float = 0.12
+    heel_lift_time_s: float = 0.3
 
     def __post_init__(self) -> None:
         for f in fields(self):
             x = getattr(self, f.name)
             ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-            lo_ok = x >= 0 if f.name.startswith(("w_", "cop_")) else x > 0
+            nonneg = f.name.startswith(("w_", "cop_")) or f.name in ("landing_depth_m", "heel_lift_rad")
+            lo_ok = x >= 0 if nonneg else x > 0
             if not (ok and lo_ok) or (f.name in ("friction_safety", "torque_margin") and x > 1.0):
                 raise ValueError(f"BalanceSettings.{f.name} = {x!r}: expected a finite number "
-                                 f"{'>= 0' if f.name.startswith(('w_', 'cop_')) else '> 0'}"
+                                 f"{'>= 0' if nonneg else '> 0'}"
                                  f"{' and <= 1' if f.name in ('friction_safety', 'torque_margin') else ''}")
 
 
@@ -194,6 +212,20 @@ class BalanceController:
             hdt = s.ff_dt_s
             a_ff = (self.traj.toe_reference(k, t + hdt, foot)[1] - self.traj.toe_reference(k, t - hdt, foot)[1]) \
                 / (2.0 * hdt)
+            # aim the last 20 % of the swing landing_depth_m below the path (smoothstep): on real ground the sole
+            # then meets the ground on time and presses it (the path ends with the sole ~0.5 mm above it)
+            u = (t - info.t_start) / info.duration
+            if u > 0.8 and s.landing_depth_m > 0.0:
+                x = min(1.0, (u - 0.8) / 0.2)
+                pt = pt - np.array([0.0, 0.0, s.landing_depth_m * x * x * (3.0 - 2.0 * x)])
+                v6 = v6.copy()
+                v6[2] -= s.landing_depth_m * 6.0 * x * (1.0 - x) / (0.2 * info.duration)
+            late = t - info.t_end
+            if late > 0.0:   # the foot has not landed on schedule (real ground): keep lowering it until it does
+                pt = pt - np.array([0.0, 0.0, s.landing_search_mps * late])
+                v6 = v6.copy()
+                v6[2] -= s.landing_search_mps
+                a_ff = np.zeros(6)
             fpt = self.fid[TOE_POINT_FRAME[foot]]
             ftoe = self.fid[FOOT_SPECS[foot].toe_frame]
             kp, kd = _pd(s.swing_omega)
@@ -210,6 +242,20 @@ class BalanceController:
             Jm = pin.getFrameJacobian(model, d, fmain, LWA)
             wm = pin.getFrameVelocity(model, d, fmain, LWA).angular
             task(Jm[3:], a_ff[3:] + kp * pin.log3(Rr @ d.oMf[fmain].rotation.T) + kd * (v6[3:] - wm),
+                 pin.getFrameAcceleration(model, d, fmain, LWA).angular, s.w_swing)
+        elif phase.is_double_support:
+            # the trailing foot, held by its toe: lift its heel (toe-off) so that only the toe part touches, as the
+            # contact model (toe weld) assumes; on real ground a flat trailing foot would carry load on its heel
+            foot = "R" if phase.support_foot == "L" else "L"
+            ftoe, fmain = self.fid[FOOT_SPECS[foot].toe_frame], self.fid[FOOT_SPECS[foot].main_frame]
+            x = min(1.0, (t - info.t_start) / min(info.duration, s.heel_lift_time_s))
+            ang = s.heel_lift_rad * x * x * (3.0 - 2.0 * x)
+            c, sn = math.cos(ang), math.sin(ang)
+            R_ref = d.oMf[ftoe].rotation @ np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
+            Jm = pin.getFrameJacobian(model, d, fmain, LWA)
+            wm = pin.getFrameVelocity(model, d, fmain, LWA).angular
+            kp, kd = _pd(s.swing_omega)
+            task(Jm[3:], kp * pin.log3(R_ref @ d.oMf[fmain].rotation.T) - kd * wm,
                  pin.getFrameAcceleration(model, d, fmain, LWA).angular, s.w_swing)
         # posture (thesis joint angles toward the initial ones)
         th = self.hm.theta_from_q(q)
@@ -234,20 +280,22 @@ class BalanceController:
         # joint torques tau = M a + h - J^T lam (joint rows): in double support the feet can squeeze or twist each
         # other through the ground without changing the motion; the smallest torques pick the split
         J = rows.J
-        act = rows.actuated
+        act = np.arange(6, nv)      # every joint, the locked toe too: its motor holds the lock (see the docstring)
         Tx = np.hstack([M[act], -J[:, act].T])
         G += s.w_torque * (Tx.T @ Tx)
         g -= s.w_torque * (Tx.T @ h[act])
 
-        # equalities: base rows and locked rows of M a + h - J^T lam = 0; J a = -gamma
-        unact = np.concatenate([np.arange(6), rows.lock_v]).astype(int)
-        Ceq = np.zeros((len(unact) + m, n))
-        beq = np.zeros(len(unact) + m)
-        Ceq[:len(unact), :nv] = M[unact]
-        Ceq[:len(unact), nv:] = -J[:, unact].T
-        beq[:len(unact)] = -h[unact]
-        Ceq[len(unact):, :nv] = J
-        beq[len(unact):] = -rows.rhs_shift
+        # equalities: the base rows of M a + h - J^T lam = 0; no lock multiplier (the toe motor holds it); J a = -gamma
+        nw = rows.n_weld_rows
+        n_lock = m - nw
+        Ceq = np.zeros((6 + n_lock + m, n))
+        beq = np.zeros(6 + n_lock + m)
+        Ceq[:6, :nv] = M[:6]
+        Ceq[:6, nv:] = -J[:, :6].T
+        beq[:6] = -h[:6]
+        Ceq[6 + np.arange(n_lock), nv + nw + np.arange(n_lock)] = 1.0
+        Ceq[6 + n_lock:, :nv] = J
+        beq[6 + n_lock:] = -rows.rhs_shift
 
         Cin, bin_, cop_rows = self._contact_inequalities(rows, phase, n, nv)
         # actuator limits: |T| <= limit for the components that are linear in tau (T = P tau, tau = Tx x + h)
@@ -262,7 +310,6 @@ class BalanceController:
         a, lam = x[:nv], x[nv:]
         tau = M @ a + h - J.T @ lam
         tau[:6] = 0.0
-        tau[rows.lock_v] = 0.0
         T_cmd = self.act.thesis_torques(q, v, a, tau, kin_data=d)
         T_sat, sat = self.act.saturate(T_cmd)
         extra = {"balance_level": level}
