@@ -149,11 +149,10 @@ class Actuators:
         of P zero).  A controller can then bound T linearly in tau.  ``data``: as :meth:`torque_map`."""
         P = np.zeros((26, self.model.nv))
         exact = np.zeros(26, dtype=bool)
-        for gi, ((rows, _, _, sl, _, _), Bg) in enumerate(zip(self._groups, self._blocks(q, data))):
-            if gi in self._moment_groups:
-                continue
-            P[np.ix_(rows, self._vidx[sl])] = np.linalg.inv(Bg)
-            exact[rows] = True
+        U, Rh, _ = self._frames(q, data)
+        for (_, _, _, trows, vidx), B in zip(self._batches, self._batch_blocks(U, Rh)):
+            P[trows[:, :, None], vidx[:, None, :]] = np.linalg.inv(B)   # one batched inverse per group shape
+            exact[trows.ravel()] = True
         return P, exact
 
     def thesis_torques(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, tau: np.ndarray,

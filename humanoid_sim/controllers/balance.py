@@ -159,6 +159,7 @@ class BalanceController:
         self._upper[16:] = True                                     # theta18..theta27 (eq. 4.5)
         s = self.settings
         self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
+        self._ineq_cache: dict = {}
 
     def run_info(self) -> dict:
         """For the run's summary: calls, and calls whose contact constraints had to be relaxed."""
@@ -324,47 +325,45 @@ class BalanceController:
     # ------------------------------------------------------------------ contact constraints
     def _contact_inequalities(self, rows, phase: Phase, n: int, nv: int
                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """C x >= b rows for every welded foot body (see the module docstring); ``cop`` marks the CoP rows."""
+        """C x >= 0 rows for every welded foot body (see the module docstring); ``cop`` marks the CoP rows.  The
+        rows depend only on the contact set and the phase kind: built once per phase and cached."""
+        cached = self._ineq_cache.get(phase)
+        if cached is not None:
+            return cached
         sole = self.sole
         hw = sole.width / 2.0
-        mu = self.mu
+        mu, tor = self.mu, self.torsion
         margin = self.settings.cop_margin_dsp_m if phase.is_double_support else self.settings.cop_margin_ssp_m
-        C, bvec, cop = [], [], []
+        blocks, cop = [], []
         for i, frame in enumerate(rows.contacts.welds):
-            c0 = nv + 6 * i
             if frame in ("O_3", "O_4"):              # main body (toe locked): the whole sole, main-body frame
                 x_lo, x_hi, zs = sole.heel_back_x, sole.toe_front_x, sole.sole_z
             else:                                    # toe body: the toe part, toe-body frame
                 jx, _, jz = sole.toe_joint
                 x_lo, x_hi, zs = 0.0, sole.toe_front_x - jx, sole.sole_z - jz
-            # lam[c0 : c0 + 6] = [fx fy fz nx ny nz] at the frame origin; moments about the sole-plane point
+            lo, hi, ylo, yhi = x_lo + margin, x_hi - margin, -hw + margin, hw - margin
+            # on lam[6i : 6i + 6] = [fx fy fz nx ny nz] at the frame origin; moments about the sole-plane point
             # (0, 0, zs): n'x = nx + zs fy, n'y = ny - zs fx; CoP x = -n'y / fz, y = n'x / fz
-            fx, fy, fz, nx, ny = c0, c0 + 1, c0 + 2, c0 + 3, c0 + 4
-
-            def row(coefs: dict[int, float], is_cop: bool = False) -> None:
-                r = np.zeros(n)
-                for j, cval in coefs.items():
-                    r[j] += cval
-                C.append(r)
-                bvec.append(0.0)
-                cop.append(is_cop)
-
-            row({fz: 1.0})
-            row({fz: mu, fx: 1.0})
-            row({fz: mu, fx: -1.0})
-            row({fz: mu, fy: 1.0})
-            row({fz: mu, fy: -1.0})
-            lo, hi = x_lo + margin, x_hi - margin
-            row({ny: -1.0, fx: zs, fz: -lo}, True)      # -n'y - lo fz >= 0
-            row({ny: 1.0, fx: -zs, fz: hi}, True)       # n'y + hi fz >= 0
-            row({fz: self.torsion, c0 + 5: 1.0})       # |n_z| <= torsion fz (yaw friction of the sole)
-            row({fz: self.torsion, c0 + 5: -1.0})
-            ylo, yhi = -hw + margin, hw - margin
-            row({nx: 1.0, fy: zs, fz: -ylo}, True)      # n'x - ylo fz >= 0
-            row({nx: -1.0, fy: -zs, fz: yhi}, True)     # yhi fz - n'x >= 0
-        if not C:
-            return np.zeros((0, n)), np.zeros(0), np.zeros(0, dtype=bool)
-        return np.array(C), np.array(bvec), np.array(cop, dtype=bool)
+            local = np.array([
+                [0, 0, 1, 0, 0, 0],               # fz >= 0
+                [1, 0, mu, 0, 0, 0],              # friction pyramid
+                [-1, 0, mu, 0, 0, 0],
+                [0, 1, mu, 0, 0, 0],
+                [0, -1, mu, 0, 0, 0],
+                [0, 0, tor, 0, 0, 1],             # |n_z| <= torsion fz
+                [0, 0, tor, 0, 0, -1],
+                [zs, 0, -lo, 0, -1, 0],           # -n'y - lo fz >= 0
+                [-zs, 0, hi, 0, 1, 0],            # n'y + hi fz >= 0
+                [0, zs, -ylo, 1, 0, 0],           # n'x - ylo fz >= 0
+                [0, -zs, yhi, -1, 0, 0],          # yhi fz - n'x >= 0
+            ], dtype=float)
+            block = np.zeros((len(local), n))
+            block[:, nv + 6 * i:nv + 6 * i + 6] = local
+            blocks.append(block)
+            cop += [False] * 7 + [True] * 4
+        out = (np.vstack(blocks), np.zeros(len(cop)), np.array(cop, dtype=bool))
+        self._ineq_cache[phase] = out
+        return out
 
     def _solve(self, G, g, Ceq, beq, Cin, bin_, cop_rows) -> tuple[np.ndarray, int]:
         """quadprog with the contact inequalities; relaxed (CoP rows dropped, then all) when infeasible."""
