@@ -16,7 +16,7 @@ from humanoid_sim.actuators import Actuators
 from humanoid_sim.audit import FLAT, SoleGeometry, signed_distance, sole_polygons
 from humanoid_sim.controllers.balance import BalanceController, BalanceSettings
 from humanoid_sim.controllers.base import ControlContext, Observation
-from humanoid_sim.phases import Phase
+from humanoid_sim.phases import FOOT_SPECS, Phase
 from humanoid_sim.scenario import parse_scenario
 from humanoid_sim.simulate import Simulator
 from humanoid_sim.summary import contact_audit, summarize
@@ -72,6 +72,33 @@ def test_ground_forces_obey_newton_for_the_whole_robot(hm, state):
         force += d.oMf[hm.frame_id(frame)].rotation @ lam[6 * i:6 * i + 3]
     # 1e-6 N: the same round-off, on forces of ~540 N
     np.testing.assert_allclose(force, mass * (d.acom[0] - model.gravity.linear), rtol=0, atol=1e-6)
+
+
+def test_heel_and_toe_box_wrenches_are_the_welds_generalized_force(hm, state):
+    """A flat foot's two box wrenches (heel box on the main body, toe box on the toe body), each pushed through its
+    own body's Jacobian, give the generalized force the weld and the toe lock apply: J_main^T W_m + J_toe^T W_t =
+    J_weld^T lam_weld + e_toe lam_lock.  Checks the wrench transport X and the lock's share independently."""
+    sim, obs = state
+    cmd = sim.controller(obs)
+    lam = cmd.motion[1]
+    boxes = cmd.extra["box_wrenches"]
+    assert boxes                                           # every phase has a flat foot
+    model, d = hm.model, hm.model.createData()
+    pin.computeJointJacobians(model, d, obs.q)
+    pin.updateFramePlacements(model, d)
+    welds, locks = obs.phase.contacts.welds, list(obs.phase.contacts.locks)
+    for frame, (Wm, Wt) in boxes.items():
+        foot = "R" if frame == "O_3" else "L"
+        spec = FOOT_SPECS[foot]
+        i, k = welds.index(frame), locks.index(spec.toe_joint)
+        Jm = pin.getFrameJacobian(model, d, hm.frame_id(frame), pin.ReferenceFrame.LOCAL)
+        Jt = pin.getFrameJacobian(model, d, hm.frame_id(spec.toe_frame), pin.ReferenceFrame.LOCAL)
+        lhs = Jm.T @ Wm + Jt.T @ Wt
+        rhs = Jm.T @ lam[6 * i:6 * i + 6]
+        rhs[hm.model.joints[hm.model.getJointId(spec.toe_joint)].idx_v] += lam[6 * len(welds) + k]
+        # 1e-8 N m: round-off of 6 x 32 products of ~500 N forces and ~1 m levers
+        np.testing.assert_allclose(lhs, rhs, rtol=0, atol=1e-8)
+        assert Wt[2] >= -1e-9 and Wm[2] >= -1e-9              # both boxes push
 
 
 def test_actuator_component_map_equals_the_thesis_torques(hm):

@@ -8,7 +8,7 @@ controller, in the family of TSID / PlaCo / mink, solves at each call
     min over x = [a (nv); lam (m)]   sum_tasks w_i |A_i a - b_i|^2  +  w_a |a|^2 + w_lam |lam|^2 + w_tau |tau|^2
     s.t.  M a + h = S^T tau + J^T lam  on the six base rows (no actuator there),
           J a = -gamma                  (the phase's welds and toe lock, as the engine enforces them),
-          lam_lock = 0                  (the stance toe's motor holds the lock, not a constraint force),
+          lam_lock = j_toe . W_t        (the toe lock carries only what the ground pushes under the toe box),
           every foot's ground wrench inside its sole and friction cone (linear inequalities in lam),
 
 and returns tau = (M a + h - J^T lam) on the joints, with (a, lam) as the motion (the weld engine then does not
@@ -16,16 +16,17 @@ solve its forward dynamics again: the same (a, lam) by uniqueness).  The QP is s
 dual active set, exact for a dense strictly convex QP of this size).
 
 The stance foot's toe joint: the thesis leaves its torque zero and lets the lock hold it (K-10); on real ground
-nothing locks it, so here its motor holds it (the lock's multiplier is zero, the torque within the toe's 30 N m
-limit), which on the weld engine is the same motion.
+nothing locks it, so here its motor holds it (the lock's multiplier is only the toe box's ground load, the torque
+within the toe's 30 N m limit), which on the weld engine is the same motion.
 
 Contact model: the phase's welds (humanoid_sim.phases; the engine's ``WeldModel``, or on an engine without one --
 MuJoCo -- the same rows built here).  A foot's ground wrench is its weld's multipliers (LOCAL [force; moment] at
 the welded frame), the whole foot in single support (main body welded, toe locked: the whole sole), the toe body in
-double support for the trailing foot (its toe part of the sole).  Known limit on real ground: the welded model puts a
-flat foot's whole ground wrench on its main body, so the toe motor is not asked to hold the ground force under the
-toe part; on MuJoCo the stance foot folds at its toe joint when its CoP passes the joint line (keeping the CoP behind
-the joint line instead makes the welded walks fall: the plan's ZMP needs the whole sole).  The sole geometry is
+double support for the trailing foot (its toe part of the sole).  A flat foot carries two ground wrenches, one on
+its heel box (main body, heel to toe joint) and one on its toe box (toe body): the toe box's wrench W_t reaches the
+main-body weld as X W_t and the toe lock as j_toe . W_t, so the toe's motor is asked for exactly what the ground
+pushes under the toe (without the split, MuJoCo's stance foot folded 22 deg at its toe joint when its CoP passed
+the joint line: the welded model had put the whole ground wrench on the main body).  The sole geometry is
 the URDF's
 (:class:`humanoid_sim.audit.SoleGeometry`), so the contact audit measures what is constrained here.  Per loaded
 foot: f_z >= 0; the centre of pressure inside the sole shrunk by ``cop_margin_ssp_m`` (single support) or
@@ -270,7 +271,11 @@ class BalanceController:
         A = np.vstack(A_list)
         b = np.concatenate(b_list)
         w = np.concatenate(w_list)
-        n = nv + m
+        # each flat foot (main body welded, toe locked) carries two ground wrenches, on its heel box and on its toe
+        # box: the toe box's W_t (toe-body frame, 6 more variables) reaches the weld as X W_t and the toe lock as
+        # j . W_t, so the toe's motor is asked to hold what the ground pushes under the toe
+        splits = self._splits(rows, model, d)
+        n = nv + m + 6 * len(splits)
         G = np.zeros((n, n))
         WA = A * w[:, None]
         G[:nv, :nv] = A.T @ WA
@@ -282,7 +287,7 @@ class BalanceController:
         # other through the ground without changing the motion; the smallest torques pick the split
         J = rows.J
         act = np.arange(6, nv)      # every joint, the locked toe too: its motor holds the lock (see the docstring)
-        Tx = np.hstack([M[act], -J[:, act].T])
+        Tx = np.hstack([M[act], -J[:, act].T, np.zeros((len(act), 6 * len(splits)))])
         G += s.w_torque * (Tx.T @ Tx)
         g -= s.w_torque * (Tx.T @ h[act])
 
@@ -292,13 +297,15 @@ class BalanceController:
         Ceq = np.zeros((6 + n_lock + m, n))
         beq = np.zeros(6 + n_lock + m)
         Ceq[:6, :nv] = M[:6]
-        Ceq[:6, nv:] = -J[:, :6].T
+        Ceq[:6, nv:nv + m] = -J[:, :6].T
         beq[:6] = -h[:6]
         Ceq[6 + np.arange(n_lock), nv + nw + np.arange(n_lock)] = 1.0
+        for j, (_, lock_row, _, jt) in enumerate(splits):     # lam_lock = j_toe . W_t (zero without a split)
+            Ceq[6 + lock_row - nw, nv + m + 6 * j:nv + m + 6 * j + 6] = -jt
         Ceq[6 + n_lock:, :nv] = J
         beq[6 + n_lock:] = -rows.rhs_shift
 
-        Cin, bin_, cop_rows = self._contact_inequalities(rows, phase, n, nv)
+        Cin, bin_, cop_rows = self._contact_inequalities(rows, phase, n, nv, splits, m)
         # actuator limits: |T| <= limit for the components that are linear in tau (T = P tau, tau = Tx x + h)
         P, exact = self.act.component_map(q, d)
         P, lim = P[exact], self.act.limits[exact] * self.settings.torque_margin
@@ -308,12 +315,15 @@ class BalanceController:
         bin_ = np.concatenate([bin_, Ph - lim, -Ph - lim])
         cop_rows = np.concatenate([cop_rows, np.zeros(2 * len(lim), dtype=bool)])
         x, level = self._solve(G, g, Ceq, beq, Cin, bin_, cop_rows)
-        a, lam = x[:nv], x[nv:]
+        a, lam = x[:nv], x[nv:nv + m]
         tau = M @ a + h - J.T @ lam
         tau[:6] = 0.0
         T_cmd = self.act.thesis_torques(q, v, a, tau, kin_data=d)
         T_sat, sat = self.act.saturate(T_cmd)
-        extra = {"balance_level": level}
+        extra = {"balance_level": level, "box_wrenches": {
+            rows.contacts.welds[i]: (lam[6 * i:6 * i + 6] - X @ x[nv + m + 6 * j:nv + m + 6 * j + 6],
+                                     x[nv + m + 6 * j:nv + m + 6 * j + 6].copy())
+            for j, (i, _, X, _) in enumerate(splits)}}
         if sat.any():
             B = self.act.torque_map(q, d)
             tau = tau + B @ (T_sat - T_cmd)
@@ -323,47 +333,82 @@ class BalanceController:
                        motion_model=self.weld, extra=extra)
 
     # ------------------------------------------------------------------ contact constraints
-    def _contact_inequalities(self, rows, phase: Phase, n: int, nv: int
-                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """C x >= 0 rows for every welded foot body (see the module docstring); ``cop`` marks the CoP rows.  The
-        rows depend only on the contact set and the phase kind: built once per phase and cached."""
-        cached = self._ineq_cache.get(phase)
-        if cached is not None:
-            return cached
-        sole = self.sole
-        hw = sole.width / 2.0
+    def _splits(self, rows, model, d) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
+        """Per flat foot: (its weld's index, its toe lock's row in lam, X (6 x 6: a toe-frame wrench at the toe
+        frame's origin as a main-frame wrench at the main frame's origin), j_toe (6,: the toe joint's column of the
+        toe frame's LOCAL Jacobian))."""
+        out = []
+        welds, locks = rows.contacts.welds, list(rows.contacts.locks)
+        for i, frame in enumerate(welds):
+            foot = "R" if frame == "O_3" else "L" if frame == "O_4" else None
+            if foot is None or FOOT_SPECS[foot].toe_joint not in locks:
+                continue
+            k = locks.index(FOOT_SPECS[foot].toe_joint)
+            ftoe = self.fid[FOOT_SPECS[foot].toe_frame]
+            rel = d.oMf[self.fid[frame]].actInv(d.oMf[ftoe])
+            R, p = rel.rotation, rel.translation
+            X = np.zeros((6, 6))
+            X[:3, :3] = R
+            X[3:, 3:] = R
+            X[3:, :3] = pin.skew(p) @ R
+            jt = pin.getFrameJacobian(model, d, ftoe, pin.ReferenceFrame.LOCAL)[:, int(rows.lock_v[k])]
+            out.append((i, rows.n_weld_rows + k, X, jt))
+        return out
+
+    def _box_rows(self, x_lo: float, x_hi: float, zs: float, margin: float) -> np.ndarray:
+        """(11, 6) rows L with L w >= 0 for a wrench w = [fx fy fz nx ny nz] (at a frame origin, the sole plane at
+        z = zs) inside one sole box [x_lo, x_hi] x [-width/2, width/2]: fz >= 0, the friction pyramid, the torsion
+        bound, the CoP inside the box shrunk by ``margin``.  Moments about the sole-plane point (0, 0, zs):
+        n'x = nx + zs fy, n'y = ny - zs fx; CoP x = -n'y / fz, y = n'x / fz."""
+        hw = self.sole.width / 2.0
         mu, tor = self.mu, self.torsion
+        lo, hi, ylo, yhi = x_lo + margin, x_hi - margin, -hw + margin, hw - margin
+        return np.array([
+            [0, 0, 1, 0, 0, 0],               # fz >= 0
+            [1, 0, mu, 0, 0, 0],              # friction pyramid
+            [-1, 0, mu, 0, 0, 0],
+            [0, 1, mu, 0, 0, 0],
+            [0, -1, mu, 0, 0, 0],
+            [0, 0, tor, 0, 0, 1],             # |n_z| <= torsion fz
+            [0, 0, tor, 0, 0, -1],
+            [zs, 0, -lo, 0, -1, 0],           # -n'y - lo fz >= 0
+            [-zs, 0, hi, 0, 1, 0],            # n'y + hi fz >= 0
+            [0, zs, -ylo, 1, 0, 0],           # n'x - ylo fz >= 0
+            [0, -zs, yhi, -1, 0, 0],          # yhi fz - n'x >= 0
+        ], dtype=float)
+
+    def _contact_inequalities(self, rows, phase: Phase, n: int, nv: int, splits, m: int
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """C x >= 0 rows for every foot box in contact (see the module docstring); ``cop`` marks the CoP rows.  A
+        flat foot's heel box carries W_m = lam_weld - X W_t (main-body frame), its toe box W_t (toe-body frame); a
+        foot held by its toe alone, lam_weld on its toe box."""
+        sole = self.sole
+        jx, _, jz = sole.toe_joint
         margin = self.settings.cop_margin_dsp_m if phase.is_double_support else self.settings.cop_margin_ssp_m
+        heel = self._box_rows(sole.heel_back_x, jx, sole.sole_z, margin)
+        toe = self._box_rows(0.0, sole.toe_front_x - jx, sole.sole_z - jz, margin)
+        split_of = {i: (j, X) for j, (i, _, X, _) in enumerate(splits)}
         blocks, cop = [], []
         for i, frame in enumerate(rows.contacts.welds):
-            if frame in ("O_3", "O_4"):              # main body (toe locked): the whole sole, main-body frame
-                x_lo, x_hi, zs = sole.heel_back_x, sole.toe_front_x, sole.sole_z
-            else:                                    # toe body: the toe part, toe-body frame
-                jx, _, jz = sole.toe_joint
-                x_lo, x_hi, zs = 0.0, sole.toe_front_x - jx, sole.sole_z - jz
-            lo, hi, ylo, yhi = x_lo + margin, x_hi - margin, -hw + margin, hw - margin
-            # on lam[6i : 6i + 6] = [fx fy fz nx ny nz] at the frame origin; moments about the sole-plane point
-            # (0, 0, zs): n'x = nx + zs fy, n'y = ny - zs fx; CoP x = -n'y / fz, y = n'x / fz
-            local = np.array([
-                [0, 0, 1, 0, 0, 0],               # fz >= 0
-                [1, 0, mu, 0, 0, 0],              # friction pyramid
-                [-1, 0, mu, 0, 0, 0],
-                [0, 1, mu, 0, 0, 0],
-                [0, -1, mu, 0, 0, 0],
-                [0, 0, tor, 0, 0, 1],             # |n_z| <= torsion fz
-                [0, 0, tor, 0, 0, -1],
-                [zs, 0, -lo, 0, -1, 0],           # -n'y - lo fz >= 0
-                [-zs, 0, hi, 0, 1, 0],            # n'y + hi fz >= 0
-                [0, zs, -ylo, 1, 0, 0],           # n'x - ylo fz >= 0
-                [0, -zs, yhi, -1, 0, 0],          # yhi fz - n'x >= 0
-            ], dtype=float)
-            block = np.zeros((len(local), n))
-            block[:, nv + 6 * i:nv + 6 * i + 6] = local
-            blocks.append(block)
-            cop += [False] * 7 + [True] * 4
-        out = (np.vstack(blocks), np.zeros(len(cop)), np.array(cop, dtype=bool))
-        self._ineq_cache[phase] = out
-        return out
+            cw = slice(nv + 6 * i, nv + 6 * i + 6)
+            if i in split_of:
+                j, X = split_of[i]
+                ct = slice(nv + m + 6 * j, nv + m + 6 * j + 6)
+                bh = np.zeros((len(heel), n))
+                bh[:, cw] = heel
+                bh[:, ct] = -heel @ X
+                bt = np.zeros((len(toe), n))
+                bt[:, ct] = toe
+                blocks += [bh, bt]
+                cop += ([False] * 7 + [True] * 4) * 2
+            else:
+                local = toe if frame in ("O_1", "O_2") else self._box_rows(sole.heel_back_x, sole.toe_front_x,
+                                                                            sole.sole_z, margin)
+                blk = np.zeros((len(local), n))
+                blk[:, cw] = local
+                blocks.append(blk)
+                cop += [False] * 7 + [True] * 4
+        return np.vstack(blocks), np.zeros(len(cop)), np.array(cop, dtype=bool)
 
     def _solve(self, G, g, Ceq, beq, Cin, bin_, cop_rows) -> tuple[np.ndarray, int]:
         """quadprog with the contact inequalities; relaxed (CoP rows dropped, then all) when infeasible."""
