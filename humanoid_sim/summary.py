@@ -61,6 +61,7 @@ def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, A
         out.update({"fell": bool(ground["fell"]), "fall_time_s": ground["fall_time_s"],
                     "fall_reason": ground["fall_reason"], "foot_slip_max_m": _f(ground["foot_slip_max_m"]),
                     "foot_tilt_max_rad": _f(ground["foot_tilt_max_rad"]),
+                    "stance_tilt_max_rad": _f(ground["stance_tilt_max_rad"]),
                     "penetration_max_m": _f(ground["penetration_max_m"]),
                     "control_period_s": _f(ground["control_period_s"])})
     td = [p.touchdown_error_m for p in result.phases if p.touchdown_error_m is not None]

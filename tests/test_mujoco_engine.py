@@ -195,3 +195,22 @@ def test_thesis_gait_tips_over_sideways(hm: HumanoidModel, sc) -> None:
     assert s["foot_tilt_max_rad"] > np.radians(3.0)  # the edge criterion's tilt
     # weld-engine summaries are unchanged: no ground fields there
     assert "fell" not in summarize(dataclasses.replace(r, extra={}), sc.name, "pinocchio")
+
+
+def test_zmp_gait_with_the_balance_controller_walks_on_real_ground(hm):
+    """The feasible gait on MuJoCo's ground: the lead-in and the first two steps of sim 3's zmp walk (3 s) without
+    a fall, the feet holding (slip < 5 mm: issue #15's bound per stance) and the hip on its plan."""
+    import yaml
+
+    from humanoid_sim.scenario import parse_scenario
+    from humanoid_sim.summary import summarize
+
+    root = Path(__file__).resolve().parents[1]
+    sc = parse_scenario(yaml.safe_load((root / "scripts" / "params" / "sim3_zmp.yaml").read_text()), "sim3_zmp")
+    sim = Simulator(hm, sc, engine="mujoco")
+    res = sim.run(t_end=3.0)
+    s = summarize(res, sc.name, "mujoco")
+    assert not s["fell"], s["fall_reason"]
+    assert res.phases[-1].index >= 4                     # lead-in, two single and two double supports at least
+    assert s["foot_slip_max_m"] < 0.005
+    assert s["hip_com_error_rms_m"] < 0.020               # issue #15's tracking bound

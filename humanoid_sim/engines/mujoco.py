@@ -52,7 +52,9 @@ MuJoCo's acceleration and MuJoCo's constraint forces (a check that both engines 
 
 summary.json gains (``run_info``): ``fell``, ``fall_time_s``, ``fall_reason``, ``foot_slip_max_m`` (largest
 horizontal travel of a sole box's corners while that box stays loaded, over both feet and the whole run),
-``foot_tilt_max_rad`` (largest tilt of a foot's main body while it carries load), ``penetration_max_m``.
+``foot_tilt_max_rad`` (largest tilt of a foot's main body while it carries load: a trailing foot rolling onto its
+toe counts), ``stance_tilt_max_rad`` (the same for the foot the phase holds flat, the stance foot only),
+``penetration_max_m``.
 """
 
 from __future__ import annotations
@@ -164,6 +166,7 @@ class MujocoEngine:
     def _reset_measures(self) -> None:
         self.slip = {f: (SlipMeter(), SlipMeter()) for f in FEET}  # (toe box, main box)
         self.tilt_max = 0.0
+        self.stance_tilt_max = 0.0
         self.penetration_max = 0.0
         self.fall: tuple[float, str] | None = None
 
@@ -285,7 +288,10 @@ class MujocoEngine:
             for box, normal in ((0, c.normal_toe), (1, c.normal_main)):
                 self.slip[f][box].update(f, normal >= s.contact_force_N, sole_corners(mm, data, f, box))
             if c.normal_main >= s.contact_force_N:
-                self.tilt_max = max(self.tilt_max, sole_tilt(mm, data, f))
+                tilt = sole_tilt(mm, data, f)
+                self.tilt_max = max(self.tilt_max, tilt)
+                if self.phase is not None and self.phase.support_foot == f:   # the stance (flat-held) foot
+                    self.stance_tilt_max = max(self.stance_tilt_max, tilt)
             if c.normal >= s.contact_force_N:
                 loaded.append(f)
         if self.fall is not None:
@@ -329,6 +335,7 @@ class MujocoEngine:
                            "fall_time_s": None if self.fall is None else float(self.fall[0]),
                            "fall_reason": None if self.fall is None else self.fall[1],
                            "foot_slip_max_m": float(slip), "foot_tilt_max_rad": float(self.tilt_max),
+                           "stance_tilt_max_rad": float(self.stance_tilt_max),
                            "penetration_max_m": float(self.penetration_max),
                            "control_period_s": self.settings.control_period_s,
                            "timestep_s": self.sim.timestep}}
