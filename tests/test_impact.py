@@ -113,21 +113,40 @@ def test_thesis_reset_weights_and_fixed_point(hm: HumanoidModel) -> None:
     assert np.max(np.abs(again.delta_v)) < 1e-12
 
 
+def _toe_push_z(hm: HumanoidModel, q, contacts: ContactSet, impulse: np.ndarray, frame: str) -> float:
+    """World-z component of the impulse (N s) the weld on ``frame`` takes (its LOCAL force rotated to world)."""
+    data = hm.model.createData()
+    pin.framesForwardKinematics(hm.model, data, q)
+    i = contacts.welds.index(frame)
+    return float((data.oMf[hm.frame_id(frame)].rotation @ impulse[6 * i:6 * i + 3])[2])
+
+
 @pytest.mark.parametrize("ssp", SSPS, ids=lambda p: p.value)
 def test_inelastic_impact(hm: HumanoidModel, ssp: Phase) -> None:
+    """The touchdown's inelastic impact against an independent KKT solve (contact.oracle.kkt_impulse): with the
+    next DSP's contacts when the trailing toe pushes; when it would pull, the toe separates and the impact is the
+    one on the landing foot alone (a unilateral contact pushes or leaves).  Both branches occur among the states."""
     rng = np.random.default_rng(30 + SSPS.index(ssp))
     model, data = hm.model, hm.model.createData()
     dsp = ssp.next
-    for _ in range(10):
+    toe = FOOT_SPECS[ssp.support_foot].toe_frame
+    landing = FOOT_SPECS[ssp.landing_foot]
+    branches = set()
+    for _ in range(16):
         q, v = _ssp_state(hm, rng, ssp)
         res = touchdown(model, q, v, ssp, "inelastic")
-        assert res.contacts == dsp.contacts
         v_o, imp_o = kkt_impulse(model, dsp.contacts, q, v)
-        # 1e-10 relative: two solves of the same (nv + 13) KKT system.
+        pushes = _toe_push_z(hm, q, dsp.contacts, imp_o, toe) >= 0.0
+        branches.add(pushes)
+        if pushes:
+            assert res.contacts == dsp.contacts
+        else:
+            assert res.contacts.welds == (landing.main_frame,) and res.contacts.locks == dsp.contacts.locks
+            v_o, imp_o = kkt_impulse(model, res.contacts, q, v)
+        # 1e-10 relative: two solves of the same (nv + m) KKT system.
         scale = max(1.0, np.max(np.abs(imp_o)))
         assert np.max(np.abs(res.v_plus - v_o)) < 1e-10 and np.max(np.abs(res.impulse - imp_o)) < 1e-10 * scale
-        landing = FOOT_SPECS[ssp.landing_foot]
-        for frame in (landing.main_frame, landing.toe_frame, FOOT_SPECS[ssp.support_foot].toe_frame):
+        for frame in (landing.main_frame, landing.toe_frame) + ((toe,) if pushes else ()):
             assert np.max(np.abs(_twist(hm, q, res.v_plus, frame))) < 1e-10
         # Never gains energy; the loss is Carnot's: T- - T+ = 1/2 dv^T M dv for a perfectly inelastic impact.
         M = pin.crba(model, data, q)
@@ -135,6 +154,7 @@ def test_inelastic_impact(hm: HumanoidModel, ssp: Phase) -> None:
         dv = res.delta_v
         assert res.energy_change <= 0.0
         assert -res.energy_change == pytest.approx(0.5 * dv @ M @ dv, rel=1e-9)
+    assert branches == {True, False}
 
 
 def test_inelastic_with_caller_contacts_and_errors(hm: HumanoidModel) -> None:

@@ -188,6 +188,38 @@ def test_feasibility_cells_count_and_average_by_hand(tmp_path):
         assert (tmp_path / name).stat().st_size > 10_000
 
 
+def test_sizing_figure_splits_the_walks_by_gait(tmp_path):
+    """A sweep with a gait axis draws one box per gait: each box holds exactly that gait's completed walks'
+    peaks / limit (built by hand here), and the failed walk is in none."""
+    from humanoid_sim.sweep.plots import plot_sizing, sizing_group
+    from humanoid_sim.sweep.spec import load_sweep
+
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(yaml.safe_dump({"base": str(ROOT / "scripts" / "params" / "sim3.yaml"),
+                                     "grid": {"path.Vhip": {"scale": [0.9, 1.1]},
+                                              "gait.hip_reference": ["thesis", "zmp_preview"]}}, sort_keys=False))
+    spec = load_sweep(sweep)
+    assert sizing_group(spec.axes) == "gait.hip_reference"
+    assert sizing_group(spec.axes[:1]) is None
+    limits = np.linspace(10.0, 150.0, 26)
+    rows = []
+    for w in spec.expand():
+        g = w.params["gait.hip_reference"]
+        peak = (0.9 if g == "thesis" else 0.3) * limits * (1.0 + w.index / 100)
+        rows.append({**w.params, "walk": w.index, "completed": w.index != 3,
+                     **{f"torque_peak_Nm_{n}": float(peak[i]) for i, n in enumerate(T_NAMES)},
+                     **{f"torque_cmd_peak_Nm_{n}": float(peak[i]) for i, n in enumerate(T_NAMES)},
+                     **{f"saturated_fraction_per_actuator_{n}": 0.0 for n in T_NAMES}})
+    drawn = plot_sizing(rows, T_NAMES, limits, tmp_path / "sizing.png", group="gait.hip_reference")
+    assert (tmp_path / "sizing.png").stat().st_size > 10_000
+    by_gait = {k.split(" = ")[1]: v for k, v in drawn.items()}
+    for g, scale in (("thesis", 0.9), ("zmp_preview", 0.3)):
+        idx = [r["walk"] for r in rows if r["gait.hip_reference"] == g and r["completed"]]
+        expect = np.array([[scale * (1.0 + k / 100)] * 26 for k in idx])
+        np.testing.assert_allclose(by_gait[g], expect, rtol=1e-13)   # peak / limit: one division, round-off
+    assert set(plot_sizing(rows, T_NAMES, limits, tmp_path / "pooled.png")) == {""}
+
+
 def test_the_thesis_engine_runs_the_walk(hm):
     """--engine thesis reaches the thesis oracle (two steps of it: ~0.3 s), with the same summary as running it
     directly."""

@@ -199,14 +199,15 @@ def _run(args: argparse.Namespace, spec, to_run, engine: str, out: Path, sink, w
 
 def _plots(spec, rows: list[dict], out: Path) -> None:
     from humanoid_sim.actuators import T_NAMES, Actuators
-    from humanoid_sim.sweep.plots import actuator_labels, plot_feasibility, plot_sizing
+    from humanoid_sim.sweep.plots import actuator_labels, plot_feasibility, plot_sizing, sizing_group
     from humanoid_sim.sweep.walk import model
 
     limits = Actuators(model()).limits
     name = spec.source.name
     plot_sizing(rows, T_NAMES, limits, out / "sizing.png",
                 title=f"{name}: actuator sizing over {sum(1 for r in rows if r['completed'])} completed walks "
-                      f"(of {len(rows)})", labels=actuator_labels())
+                      f"(of {len(rows)})", labels=actuator_labels(),
+                group=sizing_group(spec.axes))
     plot_feasibility(rows, spec.axes, out / "feasibility.png", title=f"{name}: completion and contact feasibility")
 
 

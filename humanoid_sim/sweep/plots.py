@@ -3,7 +3,8 @@
 - :func:`plot_sizing`: per actuator (the 26 thesis torques T1..T26, eq. 4.69 order), the distribution over the
   completed walks of the peak applied |T| and of the peak commanded |T_cmd| (what the controller asked for before
   saturation), both as a fraction of the actuator's saturation limit (:attr:`humanoid_sim.actuators.Actuators.limits`);
-  below, the share of completed walks in which the actuator saturated at least once.
+  below, the share of completed walks in which the actuator saturated at least once.  A sweep with a text axis
+  (a choice of gait) draws one box per choice instead (:func:`sizing_group`).
 - :func:`plot_feasibility`: over the first two swept parameters, the share of walks that completed, the
   fraction of steps with a saturated actuator and the contact audit's infeasible fraction of steps (both means
   over the completed walks).  Grid parameters give a table of cells (other parameters pooled in each cell);
@@ -51,41 +52,85 @@ def actuator_labels() -> list[str]:
     return out
 
 
+GROUP_COLOURS = ("#2e86c1", "#27ae60", "#8e44ad", "#d35400")
+"""Box colours of the groups of :func:`plot_sizing` (e.g. the two gaits), in the order the groups first appear."""
+
+
 def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Sequence[float], path: Path,
-                title: str = "", labels: Sequence[str] | None = None) -> None:
+                title: str = "", labels: Sequence[str] | None = None, group: str | None = None
+                ) -> dict[str, np.ndarray]:
     """Write the actuator-sizing figure of the completed ``rows`` to ``path`` (PNG).  ``names``: actuator names
-    (``T1`` ...), ``limits``: their saturation limits, N m; ``labels``: tick labels (default: the names)."""
+    (``T1`` ...), ``limits``: their saturation limits, N m; ``labels``: tick labels (default: the names).
+
+    ``group``: a row column that splits the walks (e.g. ``gait.hip_reference``: the two gaits ask very different
+    torques of the ankle, and pooled boxes would hide which gait needs what).  Without it, each actuator has a box
+    of the peak applied |T| and one of the peak commanded |T_cmd|; with it, one box of the peak applied |T| per
+    group value (side by side, one colour each) and a marker at the largest commanded |T_cmd| of that group, and
+    the saturation bars per group.
+
+    Returns what the boxes show: per set (its legend label; "" without ``group``), the (walks, actuators) array
+    of peak applied |T| / limit."""
     plt = _plt()
     done = [r for r in rows if r.get("completed")]
     lim = np.asarray(limits, dtype=float)
-    applied = [np.array([_num(r.get(f"torque_peak_Nm_{n}")) for r in done]) / lim[i] for i, n in enumerate(names)]
-    demanded = [np.array([_num(r.get(f"torque_cmd_peak_Nm_{n}")) for r in done]) / lim[i] for i, n in enumerate(names)]
-    saturating = [np.mean([_num(r.get(f"saturated_fraction_per_actuator_{n}")) > 0 for r in done]) if done else 0.0
-                  for n in names]
+
+    def peaks(rs: list[dict[str, Any]], key: str) -> list[np.ndarray]:
+        return [np.array([_num(r.get(f"{key}_{n}")) for r in rs]) / lim[i] for i, n in enumerate(names)]
+
+    def saturating(rs: list[dict[str, Any]]) -> np.ndarray:
+        return np.array([np.mean([_num(r.get(f"saturated_fraction_per_actuator_{n}")) > 0 for r in rs]) if rs
+                         else 0.0 for n in names], dtype=float)
+
+    values: list[Any] = []
+    if group is not None:
+        for r in done:
+            if r.get(group) not in values:
+                values.append(r.get(group))
+    sets = [(f"{group} = {_label(v)}", [r for r in done if r.get(group) == v]) for v in values] if values else \
+        [("", done)]
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     x = np.arange(len(names))
-    if done:
-        def box(data: list[np.ndarray], dx: float, colour: str, label: str) -> None:
-            clean = [d[np.isfinite(d)] for d in data]
-            bp = ax.boxplot(clean, positions=x + dx, widths=0.32, patch_artist=True, showfliers=True,
-                            flierprops={"markersize": 3, "markeredgecolor": colour},
-                            medianprops={"color": "black"}, whis=(0, 100))
-            for b in bp["boxes"]:
-                b.set_facecolor(colour)
-                b.set_alpha(0.75)
-            ax.plot([], [], "s", color=colour, label=label)
 
-        box(applied, -0.18, "#2e86c1", "peak applied |T| (after saturation)")
-        box(demanded, 0.18, "#aab7b8", "peak commanded |T_cmd| (before saturation)")
-    else:
+    def box(data: list[np.ndarray], dx: float, width: float, colour: str, label: str) -> None:
+        clean = [d[np.isfinite(d)] for d in data]
+        bp = ax.boxplot(clean, positions=x + dx, widths=width, patch_artist=True, showfliers=True,
+                        flierprops={"markersize": 3, "markeredgecolor": colour},
+                        medianprops={"color": "black"}, whis=(0, 100), manage_ticks=False)
+        for b in bp["boxes"]:
+            b.set_facecolor(colour)
+            b.set_alpha(0.75)
+        ax.plot([], [], "s", color=colour, label=label)
+
+    n_sets = len(sets)
+    width = 0.8 / (2 if group is None else n_sets)
+    if not done:
         ax.text(0.5, 0.5, "no completed walk", transform=ax.transAxes, ha="center", va="center", fontsize=14)
+    elif group is None:
+        box(peaks(done, "torque_peak_Nm"), -0.2, 0.32, GROUP_COLOURS[0], "peak applied |T| (after saturation)")
+        box(peaks(done, "torque_cmd_peak_Nm"), 0.2, 0.32, "#aab7b8", "peak commanded |T_cmd| (before saturation)")
+    else:
+        for j, (label, rs) in enumerate(sets):
+            colour = GROUP_COLOURS[j % len(GROUP_COLOURS)]
+            dx = (j - (n_sets - 1) / 2) * width
+            box(peaks(rs, "torque_peak_Nm"), dx, width * 0.8, colour,
+                f"{label}: peak applied |T| ({len(rs)} walks)")
+            cmd = np.array([np.nanmax(c) if np.isfinite(c).any() else np.nan
+                            for c in peaks(rs, "torque_cmd_peak_Nm")])
+            ax.plot(x + dx, cmd, "v", color=colour, markersize=4, markeredgecolor="black", markeredgewidth=0.4,
+                    label=f"{label}: largest commanded |T_cmd| (before saturation)")
     ax.axhline(1.0, color=FAILED_COLOUR, ls=":", lw=1.5, label="saturation limit")
     ax.set_ylabel("peak torque / limit")
     ax.set_ylim(bottom=0.0)
+    ax.set_xlim(-0.6, len(names) - 0.4)
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(axis="y", alpha=0.3)
     ax.set_title(title or f"Actuator sizing over {len(done)} completed walks (of {len(rows)})")
-    ax2.bar(x, 100 * np.asarray(saturating, dtype=float), color="#e67e22")
+    if group is None:
+        ax2.bar(x, 100 * saturating(done), color="#e67e22")
+    else:
+        for j, (label, rs) in enumerate(sets):
+            ax2.bar(x + (j - (n_sets - 1) / 2) * width, 100 * saturating(rs), width=width * 0.8,
+                    color=GROUP_COLOURS[j % len(GROUP_COLOURS)], label=label)
     ax2.set_ylabel("walks\nsaturating, %")
     ax2.set_ylim(0, 105)
     ax2.grid(axis="y", alpha=0.3)
@@ -96,6 +141,16 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+    return {label: np.array(peaks(rs, "torque_peak_Nm")).T.reshape(len(rs), len(names)) for label, rs in sets}
+
+
+def sizing_group(axes: Sequence[Axis]) -> str | None:
+    """The column :func:`plot_sizing` splits the walks by: the first grid axis whose values are all text (e.g.
+    ``gait.hip_reference``, a choice of gait), or None."""
+    for a in axes:
+        if a.values and len(a.values) > 1 and all(isinstance(v, str) for v in a.values):
+            return a.column
+    return None
 
 
 def _label(v: Any) -> str:
