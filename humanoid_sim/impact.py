@@ -26,9 +26,9 @@ Decisions:
   alone takes the impulse and the toe leaves with the small velocity the impact gives it (the next DSP's weld
   then takes it back with a pushing force, which the contact audit checks).  The toe patch counts as one
   contact (pushes or leaves), not as four corners: in the zmp walks, where the trailing toe is almost unloaded
-  at touchdown, its corners leave with |v_z| <= 1.2 mm/s (sim3_fast_zmp, measured), i.e. the heuristic and a
-  per-corner complementarity agree to within a micrometre per step.  Before this rule a trailing toe could take
-  a pulling impulse of ~0.3 mN s (sim3_fast_zmp), outside any friction cone.
+  at touchdown, its corners move with |v_z| <= 1.2 mm/s after the impact (sim3_fast_zmp, measured: <= 12 um in
+  a 10 ms step, some corners downward: a per-corner complementarity would differ by that much).  Before this
+  rule a trailing toe could take a pulling impulse of ~0.3 mN s (sim3_fast_zmp), outside any friction cone.
 """
 
 from __future__ import annotations
