@@ -43,13 +43,21 @@ Tasks, world frame (LOCAL_WORLD_ALIGNED), each a PD on the error plus the refere
   acceleration; ``trunk_omega``;
 - single support: the swing toe point, and the swing toe body's and main body's orientations (``traj.toe_reference``;
   both bodies at the toe body's reference, so the foot stays flat and lands flat; the feed-forward acceleration is
-  the reference velocity's central difference over ``ff_dt_s``); ``swing_omega``; a swing that outlasts its
-  nominal duration (on real ground the foot may hover a fraction of a millimetre above it) keeps lowering the
-  foot at ``landing_search_mps`` until touchdown is sensed;
+  the reference velocity's central difference over ``ff_dt_s``); ``swing_omega``; the main body's reference
+  starts at the toe-off lift the double support ended with and returns to flat over ``heel_return_time_s`` (a
+  step back to flat kicked the stance foot: on MuJoCo it rocked 2-2.5 deg at every lift-off); on real ground
+  (an engine without a weld model) the last 20 % of the swing aims ``landing_depth_m`` (4 mm) below the path,
+  so that the sole meets the ground on time (without it every touchdown on MuJoCo came ~0.07 s late: the swing
+  foot lags its path by a few mm); on welds the geometric rule lands the foot on its path, and aiming below
+  pushed sole corners 1.3 mm into the ground (sim3_fast_zmp); a swing that outlasts its nominal duration keeps
+  lowering the foot at ``landing_search_mps`` until touchdown is sensed;
 - double support: the trailing foot (held by its toe) lifts its heel by ``heel_lift_rad`` (smoothstep over the
   phase or ``heel_lift_time_s``, whichever is shorter): the toe-off the toe weld assumes;
 - every joint toward its initial angle (``posture_omega``; weights ``w_posture`` on the legs and the toe joints,
   ``w_upper`` on the upper body).
+The references run on the plan's clock (``time_shift``): when a phase starts later than planned (a touchdown
+sensed late on real ground), every reference is read that much earlier, so the plan waits for the foot instead of
+moving the hip on and starting the next swing part-way along its path.
 Units: SI (m, rad, N, N m, s).
 """
 
@@ -91,13 +99,19 @@ class BalanceSettings:
     ff_dt_s: float = 1e-3
     torque_margin: float = 0.98
     landing_search_mps: float = 0.05
-    landing_depth_m: float = 0.0
+    landing_depth_m: float = 0.004
     heel_lift_rad: float = 0.12
     heel_lift_time_s: float = 0.3
+    heel_return_time_s: float = 0.2
+    time_shift: bool = True
 
     def __post_init__(self) -> None:
         for f in fields(self):
             x = getattr(self, f.name)
+            if f.name == "time_shift":
+                if not isinstance(x, bool):
+                    raise ValueError(f"BalanceSettings.time_shift = {x!r}: expected true or false")
+                continue
             ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
             nonneg = f.name.startswith(("w_", "cop_")) or f.name in ("landing_depth_m", "heel_lift_rad")
             lo_ok = x >= 0 if nonneg else x > 0
@@ -140,6 +154,7 @@ class BalanceController:
         if getattr(cons, "kind", None) == "oracle":
             raise ControllerError("the balance controller runs on the weld model; the oracle engine offers the "
                                   "thesis's 122 x 122 equations only (use --engine pinocchio or mujoco)")
+        self._real_ground = not isinstance(cons, WeldModel)
         self.weld = cons if isinstance(cons, WeldModel) else WeldModel(ContactDynamics(hm.model))
         self.dyn = self.weld.dyn
         self.act = Actuators(hm)
@@ -161,6 +176,21 @@ class BalanceController:
         s = self.settings
         self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
         self._ineq_cache: dict = {}
+        self._lift_at_start: dict = {}
+        self._phase_k, self._shift = -1, 0.0
+
+    def _reference_time(self, k: int, t: float) -> float:
+        """The time at which the references are read, s: ``t`` minus how late phase ``k`` started against the plan
+        (``time_shift`` on), so that every reference (hip plan, swing path, toe-off) runs on the phase's own clock.
+        On real ground a touchdown is sensed, not scheduled: a foot that lands 0.07 s late would otherwise start
+        the next swing 0.07 s into its path (the swing foot lags its reference by ~1 cm and is kicked toward it,
+        rocking the stance foot) and the hip plan would move on to a foot that is not down yet.  Phases that start
+        early are not shifted forward (the plan only waits)."""
+        if k != self._phase_k:
+            self._phase_k = k
+            late = t - self.traj.phases[k].t_start
+            self._shift = max(self._shift, late) if self.settings.time_shift else 0.0
+        return t - self._shift
 
     def run_info(self) -> dict:
         """For the run's summary: calls, and calls whose contact constraints had to be relaxed."""
@@ -170,7 +200,8 @@ class BalanceController:
     # ------------------------------------------------------------------ one call
     def __call__(self, obs: Observation) -> Command:
         self.calls += 1
-        k, phase, t, q, v = obs.k, obs.phase, obs.t, obs.q, obs.v
+        k, phase, t_now, q, v = obs.k, obs.phase, obs.t, obs.q, obs.v
+        t = self._reference_time(k, t_now)   # the plan's clock: it waits for a late touchdown
         s = self.settings
         model, d = self.model, self.dyn.data
         rows = self.dyn.prepare(phase.contacts, obs.anchors, q, v)   # kinematics, Jacobians, M (upper), nle
@@ -217,11 +248,12 @@ class BalanceController:
             # aim the last 20 % of the swing landing_depth_m below the path (smoothstep): on real ground the sole
             # then meets the ground on time and presses it (the path ends with the sole ~0.5 mm above it)
             u = (t - info.t_start) / info.duration
-            if u > 0.8 and s.landing_depth_m > 0.0:
+            depth = s.landing_depth_m if self._real_ground else 0.0
+            if u > 0.8 and depth > 0.0:
                 x = min(1.0, (u - 0.8) / 0.2)
-                pt = pt - np.array([0.0, 0.0, s.landing_depth_m * x * x * (3.0 - 2.0 * x)])
+                pt = pt - np.array([0.0, 0.0, depth * x * x * (3.0 - 2.0 * x)])
                 v6 = v6.copy()
-                v6[2] -= s.landing_depth_m * 6.0 * x * (1.0 - x) / (0.2 * info.duration)
+                v6[2] -= depth * 6.0 * x * (1.0 - x) / (0.2 * info.duration)
             late = t - info.t_end
             if late > 0.0:   # the foot has not landed on schedule (real ground): keep lowering it until it does
                 pt = pt - np.array([0.0, 0.0, s.landing_search_mps * late])
@@ -239,11 +271,30 @@ class BalanceController:
             wt = pin.getFrameVelocity(model, d, ftoe, LWA).angular
             task(Jt[3:], a_ff[3:] + kp * pin.log3(Rr @ d.oMf[ftoe].rotation.T) + kd * (v6[3:] - wt),
                  pin.getFrameAcceleration(model, d, ftoe, LWA).angular, s.w_swing)
-            # the swing foot's main body at the same orientation: a flat foot (toe joint straight) lands flat
+            # the swing foot's main body at the same orientation: a flat foot (toe joint straight) lands flat.  It
+            # left the ground with its heel lifted (the double support's toe-off): the reference starts there and
+            # returns to flat over heel_return_time_s (a step back to flat would kick the stance foot: on real
+            # ground it rocked by 2-2.5 deg at every lift-off)
             fmain = self.fid[FOOT_SPECS[foot].main_frame]
             Jm = pin.getFrameJacobian(model, d, fmain, LWA)
             wm = pin.getFrameVelocity(model, d, fmain, LWA).angular
-            task(Jm[3:], a_ff[3:] + kp * pin.log3(Rr @ d.oMf[fmain].rotation.T) + kd * (v6[3:] - wm),
+            Rm, wm_ref, am_ff = Rr, v6[3:], a_ff[3:]
+            xr = (t - info.t_start) / s.heel_return_time_s
+            if xr < 1.0 and s.heel_lift_rad > 0.0:
+                lift0 = self._lift_at_start.get((k, foot))
+                if lift0 is None:   # the lift the double support ended with (its smoothstep's value)
+                    prev = self.traj.phases[k - 1] if k > 0 else None
+                    xd = 1.0 if prev is None else min(1.0, prev.duration / min(prev.duration, s.heel_lift_time_s))
+                    lift0 = self._lift_at_start.setdefault((k, foot), s.heel_lift_rad * xd * xd * (3.0 - 2.0 * xd))
+                ang = lift0 * (1.0 - xr * xr * (3.0 - 2.0 * xr))
+                dang = -lift0 * 6.0 * xr * (1.0 - xr) / s.heel_return_time_s
+                ddang = -lift0 * 6.0 * (1.0 - 2.0 * xr) / s.heel_return_time_s ** 2
+                c, sn = math.cos(ang), math.sin(ang)
+                Rm = Rr @ np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
+                axis = Rr[:, 1]                       # the toe body's pitch axis, world
+                wm_ref = v6[3:] + dang * axis
+                am_ff = a_ff[3:] + ddang * axis
+            task(Jm[3:], am_ff + kp * pin.log3(Rm @ d.oMf[fmain].rotation.T) + kd * (wm_ref - wm),
                  pin.getFrameAcceleration(model, d, fmain, LWA).angular, s.w_swing)
         elif phase.is_double_support:
             # the trailing foot, held by its toe: lift its heel (toe-off) so that only the toe part touches, as the
