@@ -26,7 +26,8 @@ Prints one JSON object:
   calls), ``mj_step_us`` (one MuJoCo step standing in double support, median of 1000), ``engine_us_per_update``
   (the engine's own work per control update: state map, contact forces, ground measures; from a 2 s standing run
   minus its controller and MuJoCo steps) and ``projected_real_time_factor`` = 1 / (rate x (controller + engine) +
-  1000 steps x mj_step) for a walk that does not fall;
+  1000 steps x mj_step) for a walk that does not fall; ``zmp_preview``: the scenario's zmp gait (below) walked on
+  MuJoCo by its balance controller (median of up to 3 runs): the real-time factor of a walk that stands (issue #15);
 - ``gaits``: the same scenario with ``gait: {hip_reference: zmp_preview}`` added (issue #13) on the fast engine:
   its ``real_time_factor`` (median of the repeats, in this same process, planning excluded), ``plan_s`` (building
   the trajectory: ZMP preview and multibody correction, median), the simulated time and how it ended, and
@@ -174,8 +175,8 @@ def mujoco_bench(hm, scenario, repeats: int) -> dict:
                                                  "engine": round(rate * engine_us * 1e-6, 4)}}
 
 
-def gait_bench(hm, scenario_path: Path, repeats: int, thesis_rtf: float) -> dict:
-    """The zmp-preview gait of the scenario (its file plus ``gait: {hip_reference: zmp_preview}``), fast engine."""
+def gait_bench(hm, scenario_path: Path, repeats: int, thesis_rtf: float, engine: str = "pinocchio") -> dict:
+    """The zmp-preview gait of the scenario (its file plus ``gait: {hip_reference: zmp_preview}``) on ``engine``."""
     import yaml
 
     from humanoid_sim.scenario import parse_scenario
@@ -188,13 +189,13 @@ def gait_bench(hm, scenario_path: Path, repeats: int, thesis_rtf: float) -> dict
     res = None
     for _ in range(repeats):
         w0 = time.perf_counter()
-        sim = Simulator(hm, scenario)
+        sim = Simulator(hm, scenario, engine=engine)
         plans.append(time.perf_counter() - w0)
         w0 = time.perf_counter()
         res = sim.run()
         walls.append(time.perf_counter() - w0)
     rtf = res.sim_time / statistics.median(walls)
-    return {"scenario": scenario.name, "real_time_factor": round(rtf, 2), "plan_s": round(statistics.median(plans), 3),
+    return {"scenario": scenario.name, "engine": engine, "real_time_factor": round(rtf, 2), "plan_s": round(statistics.median(plans), 3),
             "sim_time_s": round(res.sim_time, 6), "completed": bool(res.completed), "reason": res.reason,
             "ratio_to_thesis": round(rtf / thesis_rtf, 3)}
 
@@ -267,6 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     out["gaits"] = {"thesis": {"real_time_factor": round(rtf, 2)},
                     "zmp_preview": gait_bench(hm, args.scenario, args.repeats, rtf)}
     out["mujoco"] = mujoco_bench(hm, scenario, args.repeats)
+    out["mujoco"]["zmp_preview"] = gait_bench(hm, args.scenario, max(1, min(3, args.repeats)), rtf, engine="mujoco")
     print(json.dumps(out, indent=2))
     return 0
 
