@@ -170,10 +170,31 @@ def test_a_demand_beyond_the_sole_puts_the_cop_on_the_margin(hm, sc):
     ("w_hip", -1.0, "BalanceSettings.w_hip = -1.0: expected a finite number >= 0"),
     ("friction_safety", 1.5, "BalanceSettings.friction_safety = 1.5: expected a finite number > 0 and <= 1"),
     ("cop_margin_ssp_m", float("nan"), "BalanceSettings.cop_margin_ssp_m = nan"),
+    ("time_shift", 1, "BalanceSettings.time_shift = 1: expected true or false"),
 ])
 def test_bad_settings_are_named(field, value, message):
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
         BalanceSettings(**{field: value})
+
+
+def test_references_wait_for_a_late_phase():
+    """The plan's clock: a phase that starts late shifts every later reference by its lateness; an early start
+    does not move the plan forward; a later, smaller lateness keeps the larger shift.  Hand-computed times."""
+    from types import SimpleNamespace
+
+    traj = SimpleNamespace(phases=[SimpleNamespace(t_start=0.0), SimpleNamespace(t_start=1.0),
+                                   SimpleNamespace(t_start=2.0), SimpleNamespace(t_start=3.0)])
+    ctrl = BalanceController()
+    ctrl.traj, ctrl._phase_k, ctrl._shift = traj, -1, 0.0
+    assert ctrl._reference_time(0, 0.0) == 0.0
+    assert ctrl._reference_time(0, 0.5) == 0.5
+    assert ctrl._reference_time(1, 1.07) == pytest.approx(1.0, abs=1e-15)      # 0.07 s late: the plan waits
+    assert ctrl._reference_time(1, 1.5) == pytest.approx(1.43, abs=1e-15)
+    assert ctrl._reference_time(2, 2.05) == pytest.approx(1.98, abs=1e-15)     # 0.05 s late: the 0.07 s stays
+    assert ctrl._reference_time(3, 3.2) == pytest.approx(3.0, abs=1e-15)       # 0.2 s late
+    off = BalanceController(BalanceSettings(time_shift=False))
+    off.traj, off._phase_k, off._shift = traj, -1, 0.0
+    assert off._reference_time(1, 1.07) == 1.07
 
 
 def test_zmp_walk_is_feasible_on_welded_feet(hm, sc):

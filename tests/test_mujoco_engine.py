@@ -214,3 +214,22 @@ def test_zmp_gait_with_the_balance_controller_walks_on_real_ground(hm):
     assert res.phases[-1].index >= 4                     # lead-in, two single and two double supports at least
     assert s["foot_slip_max_m"] < 0.005
     assert s["hip_com_error_rms_m"] < 0.020               # issue #15's tracking bound
+
+
+@pytest.mark.parametrize("name", ["sim1_zmp", "sim3_fast_zmp"])
+def test_zmp_walks_that_touch_down_late_complete_on_real_ground(hm, name):
+    """Sim 1's curved walk and the 1.5x walk, whole, on MuJoCo: every phase without a fall, hip within issue #15's
+    20 mm RMS.  Both fell (t = 6.3 s and 2.1 s) before the references waited for late touchdowns (time_shift) and
+    the lifted heel returned to flat gradually; this guards those two.  (Their slip and tilt still exceed the
+    issue's per-stance bounds, see the README: not asserted here.)"""
+    import yaml
+
+    from humanoid_sim.scenario import parse_scenario
+    from humanoid_sim.summary import summarize
+
+    root = Path(__file__).resolve().parents[1]
+    sc = parse_scenario(yaml.safe_load((root / "scripts" / "params" / f"{name}.yaml").read_text()), name)
+    res = Simulator(hm, sc, engine="mujoco").run()
+    s = summarize(res, sc.name, "mujoco")
+    assert res.completed and not s["fell"], res.reason
+    assert s["hip_com_error_rms_m"] < 0.020
