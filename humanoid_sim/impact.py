@@ -175,6 +175,8 @@ def inelastic_impact(model: pin.Model, q: np.ndarray, v_minus: np.ndarray, conta
     if unknown:
         raise ImpactError(f"unilateral welds {unknown} are not welds of the contact set {contacts.name!r} "
                           f"{contacts.welds}")
+    pin.framesForwardKinematics(model, data, q)           # the welds' orientations (q does not change)
+    rotation = {f: data.oMf[_frame_id(model, f, contacts)].rotation.copy() for f in unilateral}
     while True:
         J = constraint_jacobian(model, data, q, contacts)
         if np.linalg.matrix_rank(J) < J.shape[0]:
@@ -182,9 +184,8 @@ def inelastic_impact(model: pin.Model, q: np.ndarray, v_minus: np.ndarray, conta
                                           f"(rank {np.linalg.matrix_rank(J)} < {J.shape[0]})")
         v_plus = pin.impulseDynamics(model, data, q, v_minus, J, 0.0, 0.0).copy()
         impulse = data.impulse_c.copy()
-        pin.framesForwardKinematics(model, data, q)
-        pulling = [f for i, f in enumerate(contacts.welds) if f in unilateral
-                   and (data.oMf[_frame_id(model, f, contacts)].rotation @ impulse[6 * i:6 * i + 3])[2] < 0.0]
+        pulling = [f for i, f in enumerate(contacts.welds)
+                   if f in rotation and (rotation[f] @ impulse[6 * i:6 * i + 3])[2] < 0.0]
         if not pulling:
             break
         contacts = ContactSet(tuple(f for f in contacts.welds if f not in pulling), contacts.locks,

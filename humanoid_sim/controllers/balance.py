@@ -75,6 +75,8 @@ from humanoid_sim.controllers.base import Command, ControlContext, ControllerErr
 from humanoid_sim.phases import FOOT_SPECS, TOE_POINT_FRAME, Phase
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_FOOT_OF_MAIN = {spec.main_frame: foot for foot, spec in FOOT_SPECS.items()}   # O_3 -> R, O_4 -> L
+_TOE_FRAMES = {spec.toe_frame for spec in FOOT_SPECS.values()}                  # O_1, O_2
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,12 @@ class BalanceSettings:
                 raise ValueError(f"BalanceSettings.{f.name} = {x!r}: expected a finite number "
                                  f"{'>= 0' if nonneg else '> 0'}"
                                  f"{' and <= 1' if f.name in ('friction_safety', 'torque_margin') else ''}")
+
+
+def _rot_y(ang: float) -> np.ndarray:
+    """Rotation by ``ang`` (rad) about the local y axis (a foot's pitch: heel up for ang > 0 about the toe joint)."""
+    c, sn = math.cos(ang), math.sin(ang)
+    return np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
 
 
 def _pd(omega: float) -> tuple[float, float]:
@@ -175,8 +183,6 @@ class BalanceController:
         self._upper[16:] = True                                     # theta18..theta27 (eq. 4.5)
         s = self.settings
         self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
-        self._ineq_cache: dict = {}
-        self._lift_at_start: dict = {}
         self._phase_k, self._shift = -1, 0.0
 
     def _reference_time(self, k: int, t: float) -> float:
@@ -281,16 +287,13 @@ class BalanceController:
             Rm, wm_ref, am_ff = Rr, v6[3:], a_ff[3:]
             xr = (t - info.t_start) / s.heel_return_time_s
             if xr < 1.0 and s.heel_lift_rad > 0.0:
-                lift0 = self._lift_at_start.get((k, foot))
-                if lift0 is None:   # the lift the double support ended with (its smoothstep's value)
-                    prev = self.traj.phases[k - 1] if k > 0 else None
-                    xd = 1.0 if prev is None else min(1.0, prev.duration / min(prev.duration, s.heel_lift_time_s))
-                    lift0 = self._lift_at_start.setdefault((k, foot), s.heel_lift_rad * xd * xd * (3.0 - 2.0 * xd))
+                # the double support's toe-off reached its full lift (its smoothstep runs over the shorter of the
+                # phase and heel_lift_time_s, so it always completes by the phase end)
+                lift0 = s.heel_lift_rad
                 ang = lift0 * (1.0 - xr * xr * (3.0 - 2.0 * xr))
                 dang = -lift0 * 6.0 * xr * (1.0 - xr) / s.heel_return_time_s
                 ddang = -lift0 * 6.0 * (1.0 - 2.0 * xr) / s.heel_return_time_s ** 2
-                c, sn = math.cos(ang), math.sin(ang)
-                Rm = Rr @ np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
+                Rm = Rr @ _rot_y(ang)
                 axis = Rr[:, 1]                       # the toe body's pitch axis, world
                 wm_ref = v6[3:] + dang * axis
                 am_ff = a_ff[3:] + ddang * axis
@@ -303,8 +306,7 @@ class BalanceController:
             ftoe, fmain = self.fid[FOOT_SPECS[foot].toe_frame], self.fid[FOOT_SPECS[foot].main_frame]
             x = min(1.0, (t - info.t_start) / min(info.duration, s.heel_lift_time_s))
             ang = s.heel_lift_rad * x * x * (3.0 - 2.0 * x)
-            c, sn = math.cos(ang), math.sin(ang)
-            R_ref = d.oMf[ftoe].rotation @ np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
+            R_ref = d.oMf[ftoe].rotation @ _rot_y(ang)
             Jm = pin.getFrameJacobian(model, d, fmain, LWA)
             wm = pin.getFrameVelocity(model, d, fmain, LWA).angular
             kp, kd = _pd(s.swing_omega)
@@ -391,7 +393,7 @@ class BalanceController:
         out = []
         welds, locks = rows.contacts.welds, list(rows.contacts.locks)
         for i, frame in enumerate(welds):
-            foot = "R" if frame == "O_3" else "L" if frame == "O_4" else None
+            foot = _FOOT_OF_MAIN.get(frame)
             if foot is None or FOOT_SPECS[foot].toe_joint not in locks:
                 continue
             k = locks.index(FOOT_SPECS[foot].toe_joint)
@@ -453,8 +455,8 @@ class BalanceController:
                 blocks += [bh, bt]
                 cop += ([False] * 7 + [True] * 4) * 2
             else:
-                local = toe if frame in ("O_1", "O_2") else self._box_rows(sole.heel_back_x, sole.toe_front_x,
-                                                                            sole.sole_z, margin)
+                local = toe if frame in _TOE_FRAMES else self._box_rows(sole.heel_back_x, sole.toe_front_x,
+                                                                         sole.sole_z, margin)
                 blk = np.zeros((len(local), n))
                 blk[:, cw] = local
                 blocks.append(blk)

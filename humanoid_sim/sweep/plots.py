@@ -102,7 +102,7 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
         ax.plot([], [], "s", color=colour, label=label)
 
     n_sets = len(sets)
-    width = 0.8 / (2 if group is None else n_sets)
+    width = 0.8 / n_sets          # per group's box (the grouped figure)
     if not done:
         ax.text(0.5, 0.5, "no completed walk", transform=ax.transAxes, ha="center", va="center", fontsize=14)
     elif group is None:
@@ -141,7 +141,7 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return {label: np.array(peaks(rs, "torque_peak_Nm")).T.reshape(len(rs), len(names)) for label, rs in sets}
+    return {label: np.array(peaks(rs, "torque_peak_Nm")).T for label, rs in sets}
 
 
 def sizing_group(axes: Sequence[Axis]) -> str | None:
