@@ -153,13 +153,15 @@ def test_a_demand_beyond_the_sole_puts_the_cop_on_the_margin(hm, sc):
     free, _ = _world_cop_margin(hm, obs.q, frame, ctrl(obs).motion[1][:6])
     assert free > 0.02                                   # the walk itself: well inside
     ctx = ControlContext(hm, sc, _Pushed(sim.traj, 0.1), sim.q0, "pinocchio", sim.engine.constraints)
-    pushed = BalanceController()
+    # friction at the full cone (friction_safety 1): the default 0.3 binds the pushed sole's tangential force
+    # before its CoP reaches the edge (measured 1.8 mm inside), and this test is about the CoP rows
+    pushed = BalanceController(BalanceSettings(friction_safety=1.0))
     pushed.setup(ctx)
     lam = pushed(obs).motion[1]
     margin, tol = _world_cop_margin(hm, obs.q, frame, lam[:6])
     assert tol < 1e-3                                    # the sole sits < 1 mm above the ground: a sharp check
     assert margin == pytest.approx(BalanceSettings().cop_margin_ssp_m, abs=tol)   # on the shrunk boundary
-    loose = BalanceController(BalanceSettings(cop_margin_ssp_m=0.0))
+    loose = BalanceController(BalanceSettings(cop_margin_ssp_m=0.0, friction_safety=1.0))
     loose.setup(ctx)
     margin, tol = _world_cop_margin(hm, obs.q, frame, loose(obs).motion[1][:6])
     assert margin == pytest.approx(0.0, abs=tol)         # no margin asked: on the sole's edge
@@ -178,23 +180,30 @@ def test_bad_settings_are_named(field, value, message):
 
 
 def test_references_wait_for_a_late_phase():
-    """The plan's clock: a phase that starts late shifts every later reference by its lateness; an early start
-    does not move the plan forward; a later, smaller lateness keeps the larger shift.  Hand-computed times."""
+    """The plan's clock: a touchdown (a double support's start) that comes late shifts every later reference by
+    its lateness; an early one does not move the plan forward; a later, smaller lateness keeps the larger shift; a
+    single support's start (scheduled, on the step grid) shifts nothing.  Hand-computed times."""
     from types import SimpleNamespace
 
-    traj = SimpleNamespace(phases=[SimpleNamespace(t_start=0.0), SimpleNamespace(t_start=1.0),
-                                   SimpleNamespace(t_start=2.0), SimpleNamespace(t_start=3.0)])
+    def ph(t0: float, swing: str | None) -> SimpleNamespace:
+        return SimpleNamespace(t_start=t0, swing_foot=swing)
+
+    traj = SimpleNamespace(phases=[ph(0.0, None), ph(1.0, "R"), ph(2.0, None), ph(3.0, "L"), ph(4.0, None),
+                                   ph(5.0, "R"), ph(6.0, None)])
     ctrl = BalanceController()
     ctrl.traj, ctrl._phase_k, ctrl._shift = traj, -1, 0.0
     assert ctrl._reference_time(0, 0.0) == 0.0
     assert ctrl._reference_time(0, 0.5) == 0.5
-    assert ctrl._reference_time(1, 1.07) == pytest.approx(1.0, abs=1e-15)      # 0.07 s late: the plan waits
-    assert ctrl._reference_time(1, 1.5) == pytest.approx(1.43, abs=1e-15)
-    assert ctrl._reference_time(2, 2.05) == pytest.approx(1.98, abs=1e-15)     # 0.05 s late: the 0.07 s stays
-    assert ctrl._reference_time(3, 3.2) == pytest.approx(3.0, abs=1e-15)       # 0.2 s late
+    assert ctrl._reference_time(1, 1.004) == 1.004                             # a single support: no shift
+    assert ctrl._reference_time(2, 2.07) == pytest.approx(2.0, abs=1e-15)      # touchdown 0.07 s late: plan waits
+    assert ctrl._reference_time(2, 2.5) == pytest.approx(2.43, abs=1e-15)
+    assert ctrl._reference_time(3, 3.075) == pytest.approx(3.005, abs=1e-15)  # its start 0.075 s late: still 0.07
+    assert ctrl._reference_time(4, 4.05) == pytest.approx(3.98, abs=1e-15)     # 0.05 s late: the 0.07 s stays
+    assert ctrl._reference_time(5, 5.1) == pytest.approx(5.03, abs=1e-15)
+    assert ctrl._reference_time(6, 6.2) == pytest.approx(6.0, abs=1e-15)       # 0.2 s late
     off = BalanceController(BalanceSettings(time_shift=False))
     off.traj, off._phase_k, off._shift = traj, -1, 0.0
-    assert off._reference_time(1, 1.07) == 1.07
+    assert off._reference_time(2, 2.07) == 2.07
 
 
 def test_zmp_walk_is_feasible_on_welded_feet(hm, sc):

@@ -241,11 +241,19 @@ def test_walk_completes_and_double_supports_last_their_planned_duration(zmp_walk
     sc, sim, res = zmp_walk
     assert res.completed, res.reason
     h = sc.simulation.step_s
+    delay = 0.0       # the plan's clock: how late the latest touchdown (a double support's start) came, s
+    early = 0
     for rec in res.phases:
         if rec.name.endswith("DSP"):
+            delay = max(delay, rec.t_start - rec.nominal_start)
             nominal = rec.nominal_end - rec.nominal_start
-            # the selector ends it at the first step boundary at or past the planned duration minus half a step
-            assert abs((rec.t_end - rec.t_start) - nominal) <= 0.5 * h + 1e-9, rec
+            due = max(rec.t_start + nominal, rec.nominal_end + delay)
+            # the selector ends it at the first step boundary at or past (its planned duration and its planned end
+            # on the plan's clock) minus half a step
+            assert abs(rec.t_end - due) <= 0.5 * h + 1e-9, rec
+            assert rec.t_end - rec.t_start >= nominal - 0.5 * h - 1e-9, rec
+            early += rec.t_start < rec.nominal_start - 0.5 * h
+    assert early > 0      # the geometric touchdown rule lands early here: the planned end is what ended those
 
 
 def test_thesis_controller_on_the_plan_is_selectable(hm):

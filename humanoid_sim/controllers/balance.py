@@ -31,7 +31,9 @@ the URDF's
 (:class:`humanoid_sim.audit.SoleGeometry`), so the contact audit measures what is constrained here.  Per loaded
 foot: f_z >= 0; the centre of pressure inside the sole shrunk by ``cop_margin_ssp_m`` (single support) or
 ``cop_margin_dsp_m``; tangential force inside the friction pyramid inscribed in the cone of
-``scenario.contact.friction_coefficient`` times ``friction_safety``; a torsion bound.  Every actuator component the
+``scenario.contact.friction_coefficient`` times ``friction_safety`` (0.3: the gait itself needs |f_t|/f_z of ~0.1;
+at 0.9 the QP leaned on a just-landed, lightly loaded foot up to its friction limit, and on MuJoCo that foot slid
+~10 mm and turned 5 deg before it carried its load); a torsion bound.  Every actuator component the
 thesis's saturation limits (humanoid_sim.actuators; T linear in tau) stays within ``torque_margin`` of its limit.
 When no motion satisfies them (the state is
 already beyond recovery), the CoP margins are dropped, then every inequality; ``run_info`` counts such calls.
@@ -43,8 +45,11 @@ Tasks, world frame (LOCAL_WORLD_ALIGNED), each a PD on the error plus the refere
   acceleration; ``trunk_omega``;
 - single support: the swing toe point, and the swing toe body's and main body's orientations (``traj.toe_reference``;
   both bodies at the toe body's reference, so the foot stays flat and lands flat; the feed-forward acceleration is
-  the reference velocity's central difference over ``ff_dt_s``); ``swing_omega``; the main body's reference
-  starts at the toe-off lift the double support ended with and returns to flat over ``heel_return_time_s`` (a
+  the reference velocity's central difference over ``ff_dt_s``, ramped in over ``swing_ramp_s`` because the
+  thesis's toe path starts with a step of 4-5 m/s^2); ``swing_omega``; the main body's reference
+  starts at the heel lift the foot left the ground with (measured at lift-off: on welds the toe-off's full
+  ``heel_lift_rad``, on real ground less, the loaded heel box holds it back) and returns to flat over
+  ``heel_return_time_s`` (a
   step back to flat kicked the stance foot: on MuJoCo it rocked 2-2.5 deg at every lift-off); on real ground
   (an engine without a weld model) the last 20 % of the swing aims ``landing_depth_m`` (4 mm) below the path,
   so that the sole meets the ground on time (without it every touchdown on MuJoCo came ~0.07 s late: the swing
@@ -97,7 +102,7 @@ class BalanceSettings:
     w_torque: float = 1e-5
     cop_margin_ssp_m: float = 0.015
     cop_margin_dsp_m: float = 0.010
-    friction_safety: float = 0.9
+    friction_safety: float = 0.3
     ff_dt_s: float = 1e-3
     torque_margin: float = 0.98
     landing_search_mps: float = 0.05
@@ -105,6 +110,7 @@ class BalanceSettings:
     heel_lift_rad: float = 0.12
     heel_lift_time_s: float = 0.3
     heel_return_time_s: float = 0.2
+    swing_ramp_s: float = 0.05
     time_shift: bool = True
 
     def __post_init__(self) -> None:
@@ -184,18 +190,21 @@ class BalanceController:
         s = self.settings
         self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
         self._phase_k, self._shift = -1, 0.0
+        self._lift_k, self._lift0 = -1, 0.0     # the swing (its phase index) and its heel lift at lift-off, rad
 
     def _reference_time(self, k: int, t: float) -> float:
-        """The time at which the references are read, s: ``t`` minus how late phase ``k`` started against the plan
-        (``time_shift`` on), so that every reference (hip plan, swing path, toe-off) runs on the phase's own clock.
-        On real ground a touchdown is sensed, not scheduled: a foot that lands 0.07 s late would otherwise start
-        the next swing 0.07 s into its path (the swing foot lags its reference by ~1 cm and is kicked toward it,
-        rocking the stance foot) and the hip plan would move on to a foot that is not down yet.  Phases that start
-        early are not shifted forward (the plan only waits)."""
+        """The time at which the references are read, s: ``t`` minus the largest lateness of a touchdown so far (a
+        double support's start against the plan; ``time_shift`` on), so that every reference (hip plan, swing path,
+        toe-off) runs on the plan's clock.  On real ground a touchdown is sensed, not scheduled: a foot that lands
+        0.07 s late would otherwise start the next swing 0.07 s into its path (the swing foot lags its reference by
+        ~1 cm and is kicked toward it, rocking the stance foot) and the hip plan would move on to a foot that is not
+        down yet.  Early touchdowns do not shift the plan forward (it only waits).  A double support ends on this
+        clock (``PhaseSelector.plan_delay``, the same rule) on the step grid, up to half a step late: the single
+        supports' starts are not counted, or the shift would ratchet up at every step."""
         if k != self._phase_k:
             self._phase_k = k
-            late = t - self.traj.phases[k].t_start
-            self._shift = max(self._shift, late) if self.settings.time_shift else 0.0
+            if self.traj.phases[k].swing_foot is None and self.settings.time_shift:   # started by a touchdown
+                self._shift = max(self._shift, t - self.traj.phases[k].t_start)
         return t - self._shift
 
     def run_info(self) -> dict:
@@ -251,6 +260,11 @@ class BalanceController:
             hdt = s.ff_dt_s
             a_ff = (self.traj.toe_reference(k, t + hdt, foot)[1] - self.traj.toe_reference(k, t - hdt, foot)[1]) \
                 / (2.0 * hdt)
+            # the thesis's toe path starts with a step in acceleration (4-5 m/s^2, 3 rad/s^2 of yaw): its feed-forward
+            # is ramped in over swing_ramp_s (smoothstep), or the swing leg's reaction jolts the stance foot
+            xs = (t - info.t_start) / s.swing_ramp_s
+            if xs < 1.0:
+                a_ff = a_ff * (max(xs, 0.0) ** 2 * (3.0 - 2.0 * max(xs, 0.0)))
             # aim the last 20 % of the swing landing_depth_m below the path (smoothstep): on real ground the sole
             # then meets the ground on time and presses it (the path ends with the sole ~0.5 mm above it)
             u = (t - info.t_start) / info.duration
@@ -286,10 +300,15 @@ class BalanceController:
             wm = pin.getFrameVelocity(model, d, fmain, LWA).angular
             Rm, wm_ref, am_ff = Rr, v6[3:], a_ff[3:]
             xr = (t - info.t_start) / s.heel_return_time_s
-            if xr < 1.0 and s.heel_lift_rad > 0.0:
-                # the double support's toe-off reached its full lift (its smoothstep runs over the shorter of the
-                # phase and heel_lift_time_s, so it always completes by the phase end)
-                lift0 = s.heel_lift_rad
+            if self._lift_k != k:
+                # the heel lift the foot left the ground with (main body pitched about the toe body's y axis).  On
+                # welds the toe-off reaches heel_lift_rad; on real ground the loaded heel box holds it back (sim 1:
+                # 2.5 deg of 6.9), and a reference starting at the full lift kicked the stance foot at lift-off
+                Rrel = d.oMf[ftoe].rotation.T @ d.oMf[fmain].rotation
+                self._lift_k = k
+                self._lift0 = min(max(math.atan2(Rrel[0, 2], Rrel[0, 0]), 0.0), s.heel_lift_rad)
+            if xr < 1.0 and self._lift0 > 0.0:
+                lift0 = self._lift0
                 ang = lift0 * (1.0 - xr * xr * (3.0 - 2.0 * xr))
                 dang = -lift0 * 6.0 * xr * (1.0 - xr) / s.heel_return_time_s
                 ddang = -lift0 * 6.0 * (1.0 - 2.0 * xr) / s.heel_return_time_s ** 2
