@@ -167,6 +167,26 @@ def test_a_demand_beyond_the_sole_puts_the_cop_on_the_margin(hm, sc):
     assert margin == pytest.approx(0.0, abs=tol)         # no margin asked: on the sole's edge
 
 
+def test_the_unloading_weight_acts_on_the_trailing_toes_normal_force(hm, sc):
+    """w_unload adds w u^2 fz^2 to the QP's cost, fz the trailing toe's normal force (u the double support's
+    progress).  For a convex QP, adding w x^2 to the cost cannot raise x^2 at the optimum, and lowers it when the
+    rest of the cost pulls x away from 0: so fz must fall as w grows, if the weight sits on that variable."""
+    sim, obs = _state_at(hm, sc, 1.78)                  # sim 3's first double support after a step, u ~ 0.7
+    assert obs.phase.is_double_support
+    ctx = ControlContext(hm, sim.sc, sim.traj, sim.q0, "pinocchio", sim.engine.constraints)
+    i = next(j for j, f in enumerate(obs.phase.contacts.welds) if f in ("O_1", "O_2"))   # the trailing toe's weld
+    info = sim.traj.phases[obs.k]
+    assert 0.3 < (obs.t - info.t_start) / info.duration < 1.0       # late enough in the phase for u^2 to weigh
+    fz = []
+    for w in (0.0, 1e-3, 1e-2, 1e-1):
+        # time_shift off: a controller first called mid-phase would take the phase for 0.08 s late (u = 0)
+        ctrl = BalanceController(BalanceSettings(w_unload=w, time_shift=False))
+        ctrl.setup(ctx)
+        fz.append(float(ctrl(obs).motion[1][6 * i + 2]))
+    assert fz[0] > 20.0                                  # without the weight the trailing toe carries load here
+    assert all(b < a for a, b in zip(fz, fz[1:])), fz    # strictly falling: the weight is on fz and only lowers it
+
+
 @pytest.mark.parametrize("field, value, message", [
     ("hip_omega", 0.0, "BalanceSettings.hip_omega = 0.0: expected a finite number > 0"),
     ("w_hip", -1.0, "BalanceSettings.w_hip = -1.0: expected a finite number >= 0"),
