@@ -196,7 +196,6 @@ def inelastic_impact(model: pin.Model, q: np.ndarray, v_minus: np.ndarray, conta
                         constraint_velocity=J @ v_plus, impulse=impulse)
 
 
-
 def touchdown(model: pin.Model, q: np.ndarray, v_minus: np.ndarray, ssp: Phase, law: str = "thesis",
               w_adj: np.ndarray | None = None, contacts: ContactSet | None = None) -> ImpactResult:
     """The touchdown ending single support phase ``ssp`` of the thesis humanoid.

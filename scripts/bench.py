@@ -196,8 +196,8 @@ def gait_bench(hm, scenario_path: Path, repeats: int, thesis_rtf: float, engine:
         walls.append(time.perf_counter() - w0)
     rtf = res.sim_time / statistics.median(walls)
     return {"scenario": scenario.name, "engine": engine, "real_time_factor": round(rtf, 2),
-            "plan_s": round(statistics.median(plans), 3), "sim_time_s": round(res.sim_time, 6), "completed": bool(res.completed), "reason": res.reason,
-            "ratio_to_thesis": round(rtf / thesis_rtf, 3)}
+            "plan_s": round(statistics.median(plans), 3), "sim_time_s": round(res.sim_time, 6),
+            "completed": bool(res.completed), "reason": res.reason, "ratio_to_thesis": round(rtf / thesis_rtf, 3)}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -88,6 +88,7 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
                 values.append(r.get(group))
     sets = [(f"{group} = {_label(v)}", [r for r in done if r.get(group) == v]) for v in values] if values else \
         [("", done)]
+    applied = {label: peaks(rs, "torque_peak_Nm") for label, rs in sets}   # what the boxes show, per set
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     x = np.arange(len(names))
 
@@ -106,13 +107,13 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
     if not done:
         ax.text(0.5, 0.5, "no completed walk", transform=ax.transAxes, ha="center", va="center", fontsize=14)
     elif group is None:
-        box(peaks(done, "torque_peak_Nm"), -0.2, 0.32, GROUP_COLOURS[0], "peak applied |T| (after saturation)")
+        box(applied[""], -0.2, 0.32, GROUP_COLOURS[0], "peak applied |T| (after saturation)")
         box(peaks(done, "torque_cmd_peak_Nm"), 0.2, 0.32, "#aab7b8", "peak commanded |T_cmd| (before saturation)")
     else:
         for j, (label, rs) in enumerate(sets):
             colour = GROUP_COLOURS[j % len(GROUP_COLOURS)]
             dx = (j - (n_sets - 1) / 2) * width
-            box(peaks(rs, "torque_peak_Nm"), dx, width * 0.8, colour,
+            box(applied[label], dx, width * 0.8, colour,
                 f"{label}: peak applied |T| ({len(rs)} walks)")
             cmd = np.array([np.nanmax(c) if np.isfinite(c).any() else np.nan
                             for c in peaks(rs, "torque_cmd_peak_Nm")])
@@ -141,7 +142,7 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return {label: np.array(peaks(rs, "torque_peak_Nm")).T for label, rs in sets}
+    return {label: np.array(a).T for label, a in applied.items()}
 
 
 def sizing_group(axes: Sequence[Axis]) -> str | None:
