@@ -358,3 +358,29 @@ def test_first_run_gives_the_same_bits_with_or_without_the_kernel_cache(tmp_path
         for k, v in ordinary.items():
             assert v.tobytes() == other[k].tobytes(), k  # bit for bit
     assert set(np.unique(ordinary["basic_phase"])) >= {0, 1, 2}  # single and double support both ran
+
+
+def test_kernel_build_children_compile_the_loaded_package(tmp_path, monkeypatch):
+    """``python -m`` puts the working directory first on sys.path: a build started from another checkout's folder
+    compiled that checkout's compiled.py, and the walk then compiled its own in-process (a 75 s first run, measured).
+    The children run from the root of the package this process loaded, with the scenario path made absolute."""
+    from humanoid_sim.kernel import build
+
+    seen = []
+
+    class FakePopen:
+        def __init__(self, cmd, **kw):
+            seen.append((cmd, kw))
+
+        def poll(self):
+            return 0
+
+    monkeypatch.setattr(build.subprocess, "Popen", FakePopen)
+    monkeypatch.chdir(tmp_path)
+    running = build.KernelBuild("scripts/params/sim1.yaml").start()
+    running.stop()
+    assert len(seen) == len(build.PARTS)
+    package_root = Path(build.__file__).resolve().parents[2]
+    for cmd, kw in seen:
+        assert Path(kw["cwd"]) == package_root
+        assert Path(cmd[-1]).is_absolute() and Path(cmd[-1]) == tmp_path / "scripts/params/sim1.yaml"

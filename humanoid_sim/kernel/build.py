@@ -72,7 +72,7 @@ class KernelBuild:
     argument types."""
 
     def __init__(self, scenario: str | Path, parts: tuple[str, ...] = PARTS, timeout: float = 600.0) -> None:
-        self.scenario = Path(scenario)
+        self.scenario = Path(scenario).resolve()
         self.parts = tuple(parts)
         self.timeout = timeout
         self.procs: dict[str, subprocess.Popen] = {}
@@ -90,7 +90,10 @@ class KernelBuild:
             self._err[part] = tempfile.TemporaryFile()
             self.procs[part] = subprocess.Popen(
                 [sys.executable, "-m", "humanoid_sim.kernel.build", part, str(self.scenario)],
-                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=self._err[part], env=env)
+                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=self._err[part], env=env,
+                # run from the package's own root: ``python -m`` puts the working directory first on sys.path, and
+                # another checkout there would compile a different compiled.py than the one this process loads
+                cwd=root)
         return self
 
     def wait(self, progress: Callable[[str, float], None] | None = None,
