@@ -142,21 +142,31 @@ class Actuators:
             B[np.ix_(self._vidx[sl], rows)] = Bg
         return B
 
-    def component_map(self, q: np.ndarray, data: pin.Data | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def joint_frames(self, q: np.ndarray, data: pin.Data | None = None) -> tuple:
+        """What :meth:`component_map` and :meth:`thesis_torques` both derive from the placements at q: world joint
+        axes, higher-body rotations, the Data they came from and the square groups' blocks.  A caller needing both
+        at one state passes it to each (``frames=``) instead of computing it twice.  ``data``: as
+        :meth:`torque_map`."""
+        U, Rh, kin_data = self._frames(q, data)
+        return U, Rh, kin_data, self._batch_blocks(U, Rh)
+
+    def component_map(self, q: np.ndarray, data: pin.Data | None = None, frames: tuple | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
         """(P, exact): P (26 x nv) with T = P tau for the components of the revolute and spherical groups
         (``exact`` True: T_group = B_g^-1 tau_group, as :meth:`thesis_torques` computes them); the universal
         shoulders' components are read off the moment transmitted to the arm, not tau alone (``exact`` False, rows
-        of P zero).  A controller can then bound T linearly in tau.  ``data``: as :meth:`torque_map`."""
+        of P zero).  A controller can then bound T linearly in tau.  ``data``: as :meth:`torque_map`; ``frames``:
+        :meth:`joint_frames` at q (then ``data`` is not read)."""
         P = np.zeros((26, self.model.nv))
         exact = np.zeros(26, dtype=bool)
-        U, Rh, _ = self._frames(q, data)
-        for (_, _, _, trows, vidx), B in zip(self._batches, self._batch_blocks(U, Rh)):
+        _, _, _, blocks = frames if frames is not None else self.joint_frames(q, data)
+        for (_, _, _, trows, vidx), B in zip(self._batches, blocks):
             P[trows[:, :, None], vidx[:, None, :]] = np.linalg.inv(B)   # one batched inverse per group shape
             exact[trows.ravel()] = True
         return P, exact
 
     def thesis_torques(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, tau: np.ndarray,
-                       kin_data: pin.Data | None = None) -> np.ndarray:
+                       kin_data: pin.Data | None = None, frames: tuple | None = None) -> np.ndarray:
         """T (26,, T-bar order, N m) of the motion (q, v, a) driven by generalized torques ``tau`` (nv,).
 
         Revolute and spherical joints: the actuated components are the whole joint-space torque, so
@@ -164,13 +174,14 @@ class Actuators:
         off the moment transmitted to the arm (RNEA joint force of theta23/theta24; the arm is a leaf, so no
         contact force enters it), about the shoulder point, in the arm frame (errata P-8).
         ``kin_data``: optional pinocchio Data holding the placements (forward kinematics) and the joint
-        Jacobians (``computeJointJacobians``) of q.
+        Jacobians (``computeJointJacobians``) of q; ``frames``: :meth:`joint_frames` at q (then ``kin_data`` is not
+        read).
         """
         data = self.data
         pin.rnea(self.model, data, q, v, a)  # joint forces data.f (rnea does not update data.oMi)
-        U, Rh, kin_data = self._frames(q, kin_data)
+        U, Rh, kin_data, blocks = frames if frames is not None else self.joint_frames(q, kin_data)
         T = np.zeros(26)
-        for (comps, jpos, hpos, trows, vidx), B in zip(self._batches, self._batch_blocks(U, Rh)):
+        for (comps, jpos, hpos, trows, vidx), B in zip(self._batches, blocks):
             if B.shape[1] == 1:
                 T[trows[:, 0]] = tau[vidx[:, 0]] / B[:, 0, 0]
             else:

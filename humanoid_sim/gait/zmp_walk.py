@@ -112,6 +112,7 @@ class ZmpPreviewTrajectory:
             raise GaitError(f"hip plan: covers {plan.t[0]:.3f} .. {plan.t[-1]:.3f} s, expected 0 .. "
                             f"{self.duration:.3f} s")
         self.plan = plan
+        self._hip_memo: tuple = (math.nan,)
         self._xy = np.ascontiguousarray(plan.xy, dtype=float)
         self._vxy = np.ascontiguousarray(plan.vxy, dtype=float)
 
@@ -120,8 +121,11 @@ class ZmpPreviewTrajectory:
         if self.plan is None:
             p = self.inner.sample(0, 0.0).hip_p
             return p.copy(), np.zeros(3), np.zeros(3)
-        p, v, a = hermite(tg, float(self.plan.t[0]), self.plan.T, self._xy, self._vxy)
-        return np.array((p[0], p[1], self.hip_z)), np.array((v[0], v[1], 0.0)), np.array((a[0], a[1], 0.0))
+        if tg != self._hip_memo[0]:   # a controller asks for the position and the acceleration at one time
+            p, v, a = hermite(tg, float(self.plan.t[0]), self.plan.T, self._xy, self._vxy)
+            self._hip_memo = (tg, (p[0], p[1], self.hip_z), (v[0], v[1], 0.0), (a[0], a[1], 0.0))
+        _, p, v, a = self._hip_memo
+        return np.array(p), np.array(v), np.array(a)
 
     def _clamp(self, k: int, t: float) -> float:
         ph = self.phases[k]
