@@ -31,7 +31,10 @@ Prints one JSON object:
 - ``gaits``: the same scenario with ``gait: {hip_reference: zmp_preview}`` added (issue #13) on the fast engine:
   its ``real_time_factor`` (median of the repeats, in this same process, planning excluded), ``plan_s`` (building
   the trajectory: ZMP preview and multibody correction, median), the simulated time and how it ended, and
-  ``ratio_to_thesis`` = its real-time factor / the thesis gait's (``real_time_factor`` above).
+  ``ratio_to_thesis`` = its real-time factor / the thesis gait's (``real_time_factor`` above);
+  ``zmp_preview_thesis_controller``: the same plan executed by chapter 5's controller (``gait.controller: thesis``)
+  in the compiled kernel, for comparison: about as fast as the thesis gait, but its centre of pressure leaves the
+  soles (the balance controller, the default, is what keeps the ground reactions feasible).
 """
 
 from __future__ import annotations
@@ -175,14 +178,18 @@ def mujoco_bench(hm, scenario, repeats: int) -> dict:
                                                  "engine": round(rate * engine_us * 1e-6, 4)}}
 
 
-def gait_bench(hm, scenario_path: Path, repeats: int, thesis_rtf: float, engine: str = "pinocchio") -> dict:
-    """The zmp-preview gait of the scenario (its file plus ``gait: {hip_reference: zmp_preview}``) on ``engine``."""
+def gait_bench(hm, scenario_path: Path, repeats: int, thesis_rtf: float, engine: str = "pinocchio",
+               controller: str | None = None) -> dict:
+    """The zmp-preview gait of the scenario (its file plus ``gait: {hip_reference: zmp_preview}``) on ``engine``;
+    ``controller``: the gait's executor (``gait.controller``; None = its default, the balance controller)."""
     import yaml
 
     from humanoid_sim.scenario import parse_scenario
 
     doc = yaml.safe_load(scenario_path.read_text())
     doc["gait"] = {"hip_reference": "zmp_preview"}
+    if controller is not None:
+        doc["gait"]["controller"] = controller
     doc["name"] = f"{doc.get('name', scenario_path.stem)}_zmp"
     scenario = parse_scenario(doc, str(scenario_path))
     plans, walls = [], []
@@ -266,7 +273,11 @@ def main(argv: list[str] | None = None) -> int:
         "breakdown": breakdown(hm, scenario, None),
     }
     out["gaits"] = {"thesis": {"real_time_factor": round(rtf, 2)},
-                    "zmp_preview": gait_bench(hm, args.scenario, args.repeats, rtf)}
+                    "zmp_preview": gait_bench(hm, args.scenario, args.repeats, rtf),
+                    # the same plan executed by chapter 5's controller in the compiled kernel: as fast, but its
+                    # ground reactions are not feasible (the README's gait section); for the speed comparison only
+                    "zmp_preview_thesis_controller": gait_bench(hm, args.scenario, args.repeats, rtf,
+                                                                controller="thesis")}
     out["mujoco"] = mujoco_bench(hm, scenario, args.repeats)
     out["mujoco"]["zmp_preview"] = gait_bench(hm, args.scenario, max(1, min(3, args.repeats)), rtf, engine="mujoco")
     print(json.dumps(out, indent=2))
