@@ -22,7 +22,9 @@ the internals used to skip the optimisation, the children compile the ordinary w
 
 from __future__ import annotations
 
+import hashlib
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -32,8 +34,16 @@ from typing import Any, Callable
 
 ENTRY_POINTS = ("ssp_stage", "dsp_stage", "project_on_support", "advance_on_support")
 """The compiled functions a walk calls from Python (``StageKernel.stage`` / ``project`` / ``advance``)."""
-PARTS = ("ssp", "dsp")
-"""Child processes of :func:`build`: ``ssp`` compiles ``ssp_stage``; ``dsp`` the rest of :data:`ENTRY_POINTS`."""
+PLAN = {"ssp": ("ssp_stage", "project_on_support"), "dsp": ("ssp_dynamics", "dsp_stage", "advance_on_support")}
+"""What each child process of :func:`build` compiles, in order: the entry points and, first in ``dsp``, the computed
+torque half of ``ssp_stage`` (which the ``ssp`` child then loads from the cache instead of compiling it too)."""
+PARTS = tuple(PLAN)
+"""Child processes of :func:`build`, one per core of the development machine."""
+LOCKS_ENV = "HUMANOID_SIM_KERNEL_LOCKS"
+"""Environment variable naming the folder of the children's per-function lock files (set by :class:`KernelBuild`)."""
+KEEP_MACHINE_CODE = ENTRY_POINTS + ("nrt", "multi3")
+"""Libraries the children generate machine code for: the entry points and numba's runtime helpers (which the entry
+points call by address)."""
 NUMBA_OPT = "2"
 """LLVM optimisation level of the children (numba's default is 3; level 2 runs the walk as fast, measured)."""
 
@@ -77,6 +87,7 @@ class KernelBuild:
         self.timeout = timeout
         self.procs: dict[str, subprocess.Popen] = {}
         self._err: dict[str, Any] = {}
+        self._locks: str | None = None
         self.started = 0.0
 
     def start(self) -> "KernelBuild":
@@ -84,6 +95,8 @@ class KernelBuild:
         root = str(Path(__file__).resolve().parents[2])
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         env.setdefault("NUMBA_OPT", NUMBA_OPT)
+        self._locks = tempfile.mkdtemp(prefix="humanoid_sim_kernel_locks_")
+        env[LOCKS_ENV] = self._locks
         self.started = time.monotonic()
         for part in self.parts:
             # stderr to a file, not a pipe: a child writing more than a pipe holds would block
@@ -136,6 +149,9 @@ class KernelBuild:
                 proc.wait()
         for fh in self._err.values():
             fh.close()
+        if self._locks is not None:
+            shutil.rmtree(self._locks, ignore_errors=True)
+            self._locks = None
 
 
 def build(scenario: str | Path, parts: tuple[str, ...] = PARTS, progress: Callable[[str, float], None] | None = None,
@@ -169,9 +185,98 @@ def _skip_callee_optimisation() -> bool:
     return True
 
 
+def _skip_callee_machine_code() -> bool:
+    """In this (child) process, generate machine code only for the libraries of :data:`KEEP_MACHINE_CODE`.
+
+    numba compiles every ``@njit`` function (and every array expression and library overload it uses) to machine code
+    as soon as it is typed, although a callee's code only ever runs linked into its callers' libraries; the children
+    never call anything but entry points (:func:`_compile_part` does not even call those).  Here the other libraries
+    keep their (function-optimised) LLVM IR for linking, are not handed to the JIT, and go to the disk cache as
+    bitcode, which numba's cache reads back (compiling it to machine code then, in a process that calls one).
+    Returns whether the numba internals needed were found."""
+    try:
+        from numba.core import codegen
+    except ImportError:  # pragma: no cover
+        return False
+    lib = getattr(codegen, "CPUCodeLibrary", None)
+    jit = getattr(codegen, "JITCPUCodegen", None)
+    needed = ("_finalize_final_module", "serialize_using_object_code", "serialize_using_bitcode",
+              "_finalize_dynamic_globals", "_verify_declare_only_symbols")
+    if lib is None or jit is None or not all(hasattr(lib, n) for n in needed) or not hasattr(jit, "set_env"):
+        return False  # pragma: no cover - numba internals changed
+    finalize, serialize, set_env = lib._finalize_final_module, lib.serialize_using_object_code, jit.set_env
+
+    def finalize_final_module(self) -> None:
+        if self.name in KEEP_MACHINE_CODE:
+            finalize(self)
+            return
+        self._finalize_dynamic_globals()  # what numba's version does, less handing the module to the JIT
+        self._verify_declare_only_symbols()
+        self._humanoid_sim_ir_only = True
+        self._finalized = True
+
+    def serialize_using_object_code(self):
+        if getattr(self, "_humanoid_sim_ir_only", False):
+            return self.serialize_using_bitcode()
+        return serialize(self)
+
+    def set_env_if_defined(self, env_name: str, env: object) -> None:
+        # a library without machine code has no environment variable to point at its environment (never called)
+        if self._engine.get_global_value_address(env_name):
+            set_env(self, env_name, env)
+
+    lib._finalize_final_module = finalize_final_module
+    lib.serialize_using_object_code = serialize_using_object_code
+    jit.set_env = set_env_if_defined
+    return True
+
+
+def _compile_once_across_children(folder: str) -> bool:
+    """In this (child) process, compile each (function of ``compiled.py``, signature) under an exclusive lock file in
+    ``folder``, shared with the other children: a child that needs a callee the other one is compiling waits for it
+    and then loads it from numba's disk cache instead of compiling it a second time.  The call graph has no cycles,
+    so neither child can wait for a lock the waiting one holds.  Returns whether file locks are available."""
+    try:
+        import fcntl
+
+        from numba.core import dispatcher, sigutils
+    except ImportError:  # pragma: no cover - not POSIX: each child compiles what it needs
+        return False
+    original = dispatcher.Dispatcher.compile
+
+    def compile(self, sig):
+        py_func = getattr(self, "py_func", None)
+        if getattr(py_func, "__module__", None) != "humanoid_sim.kernel.compiled":
+            return original(self, sig)
+        args, _ = sigutils.normalize_signature(sig)
+        if tuple(args) in self.overloads:
+            return original(self, sig)
+        key = hashlib.sha1(repr((py_func.__qualname__, tuple(str(a) for a in args))).encode()).hexdigest()
+        with open(os.path.join(folder, key), "w") as fh:
+            fcntl.flock(fh, fcntl.LOCK_EX)  # released when the file closes
+            return original(self, sig)
+
+    dispatcher.Dispatcher.compile = compile
+    return True
+
+
+class _CompileOnly:
+    """Stands for a compiled function in :mod:`humanoid_sim.kernel.stage`: a call compiles it for the argument types
+    (as numba's dispatcher types a call from Python) and runs nothing."""
+
+    def __init__(self, dispatcher: Any) -> None:
+        self.dispatcher = dispatcher
+
+    def __call__(self, *args: Any) -> None:
+        disp = self.dispatcher
+        disp.compile(tuple(disp.typeof_pyval(a) for a in args))
+
+
 def _compile_part(part: str, scenario: Path) -> None:
-    """Call this part's entry points once on representative arguments of ``scenario`` (as a walk calls them), so
-    that numba compiles them and writes its cache."""
+    """Compile this part's functions (:data:`PLAN`) for the argument types a walk of ``scenario`` calls them with,
+    in order, into numba's disk cache; no compiled code runs."""
+    if part not in PLAN:
+        raise SystemExit(f"kernel build: unknown part {part!r} (expected one of {PARTS})")
     import numpy as np
     import pinocchio as pin
 
@@ -180,6 +285,7 @@ def _compile_part(part: str, scenario: Path) -> None:
     from humanoid_sim.contact.constraints import record_anchors
     from humanoid_sim.initial import initial_configuration
     from humanoid_sim.integrator import RungeKutta
+    from humanoid_sim.kernel import compiled, stage
     from humanoid_sim.kernel.stage import StageKernel
     from humanoid_sim.model import load_model
     from humanoid_sim.phases import Phase
@@ -197,21 +303,30 @@ def _compile_part(part: str, scenario: Path) -> None:
     pin.computeJointJacobiansTimeVariation(hm.model, data, q, v)
     pin.crba(hm.model, data, q)
     pin.nonLinearEffects(hm.model, data, q, v)
-    if part == "ssp":
-        phases = [Phase.LFFSSP]
-    elif part == "dsp":
-        phases = [Phase.RFFDSP]
-        kern.support.warm_up(q, len(RungeKutta(hm.model, sc.simulation.method).tab.c))
-    else:
-        raise SystemExit(f"kernel build: unknown part {part!r} (expected one of {PARTS})")
-    for phase in phases:
+    n_rates = len(RungeKutta(hm.model, sc.simulation.method).tab.c)
+
+    def stage_of(phase: Phase) -> tuple:
         k = next(i for i, ph in enumerate(traj.phases) if ph.name == phase.value)
         table = traj.dsp_table(k) if phase.is_double_support else traj.ssp_table(k)
-        kern.stage(phase, record_anchors(hm.model, q, phase.contacts), q, v, data, table, traj.phases[k].t_start)
+        return record_anchors(hm.model, q, phase.contacts), q, v, data, table, traj.phases[k].t_start
+
+    ssp, dsp = Phase.LFFSSP, Phase.RFFDSP
+    calls = {"ssp_stage": lambda: kern.stage(ssp, *stage_of(ssp)),
+             "ssp_dynamics": lambda: kern.dynamics(ssp, stage_of(ssp)[0], q, v, data, np.empty(26)),
+             "dsp_stage": lambda: kern.stage(dsp, *stage_of(dsp)),
+             "project_on_support": lambda: kern.support.warm_up(q, n_rates),
+             "advance_on_support": lambda: kern.support.warm_up(q, n_rates)}
+    for name in PLAN[part]:
+        for other in calls:  # the calls warm_up makes that are not this one's do nothing
+            setattr(stage, other, _CompileOnly(getattr(compiled, other)) if other == name else (lambda *a: None))
+        calls[name]()
 
 
 if __name__ == "__main__":  # pragma: no cover - the child process of build()
     if len(sys.argv) != 3:
         sys.exit("usage: python -m humanoid_sim.kernel.build PART SCENARIO  (PART: ssp or dsp)")
     _skip_callee_optimisation()
+    _skip_callee_machine_code()
+    if os.environ.get(LOCKS_ENV):
+        _compile_once_across_children(os.environ[LOCKS_ENV])
     _compile_part(sys.argv[1], Path(sys.argv[2]))
