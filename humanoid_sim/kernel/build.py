@@ -34,7 +34,7 @@ from typing import Any, Callable
 
 ENTRY_POINTS = ("ssp_stage", "dsp_stage", "project_on_support", "advance_on_support")
 """The compiled functions a walk calls from Python (``StageKernel.stage`` / ``project`` / ``advance``)."""
-PLAN = {"ssp": ("ssp_stage", "project_on_support"), "dsp": ("ssp_dynamics", "dsp_stage", "advance_on_support")}
+PLAN = {"ssp": ("ssp_stage", "project_on_support", "advance_on_support"), "dsp": ("ssp_dynamics", "dsp_stage")}
 """What each child process of :func:`build` compiles, in order: the entry points and, first in ``dsp``, the computed
 torque half of ``ssp_stage`` (which the ``ssp`` child then loads from the cache instead of compiling it too)."""
 PARTS = tuple(PLAN)
