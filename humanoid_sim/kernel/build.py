@@ -1,23 +1,41 @@
 """Fill numba's disk cache of the compiled kernel quickly: the first run after an install (or after an edit of
-``kernel/compiled.py``) builds it in parallel child processes instead of compiling ~50 s in the walk's own process.
+``kernel/compiled.py``) builds it in two child processes in parallel, ~11 s, instead of compiling in the walk's own
+process (~50 s measured before the changes below).
 
-Where the time of a cold compile went (measured on the 2-core development machine, sim 1, numba 0.68):
+Where the time of a cold compile goes (the 2-core development machine, sim 1, numba 0.68):
 
-- ~50 s in all, of which ~11 s is numba's own front end (typing, lowering) and ~38 s LLVM: function passes (~5 s),
-  the whole-module optimisation of every compiled function's library (~16 s) and machine code (~15 s);
+- ordinarily, in one process: ~50 s, of which ~11 s numba's own front end (typing, lowering) and ~38 s LLVM: function
+  passes (~5 s), the whole-module optimisation of every compiled function's library (~16 s) and machine code (~15 s);
 - numba gives every ``@njit`` function its own library and links each callee's code into its caller's library, where
-  the whole-module optimisation runs again: a helper five calls deep is optimised five times.  Only the entry points
-  (:data:`ENTRY_POINTS`, the functions Python calls) ever run their own copy.
+  the whole-module optimisation runs again: a helper five calls deep is optimised five times; and it generates
+  machine code for every library as soon as it is compiled (each array expression and library overload has one too:
+  ~150 libraries for ``ssp_stage``), although a callee's code only ever runs linked into the entry points
+  (:data:`ENTRY_POINTS`, the functions Python calls).
 
-So the children here (``python -m humanoid_sim.kernel.build PART``) skip the whole-module optimisation of every
-library that is not an entry point; the entry points are optimised in full, with every callee linked in, so the code
-that runs is optimised as before.  Optimisation levels and inlining decide which instructions evaluate a formula, not
-its IEEE arithmetic (numba's code is compiled without fast-math, so LLVM neither reassociates nor contracts): the walk's
-numbers are bit for bit those of a kernel compiled the ordinary way (``tests/test_kernel.py`` checks a whole walk).
+So the children here (``python -m humanoid_sim.kernel.build PART SCENARIO``):
 
-The entry points are split over :data:`PARTS` (single-support stage; double-support stage, projection and
-integration), one child each, so both cores work.  The parent process then loads the cache (~0.3 s).  If numba lacks
-the internals used to skip the optimisation, the children compile the ordinary way (slower, same code).
+- skip the whole-module optimisation and the machine code of every library that is not an entry point: a callee
+  keeps its function-optimised LLVM IR, which its callers link, and goes to the cache as bitcode (a process that
+  calls it from Python has numba compile that to machine code on loading).  The entry points are optimised and
+  compiled in full with every callee linked in.  Optimisation levels and inlining decide which instructions evaluate
+  a formula, not its IEEE arithmetic (numba's code is compiled without fast-math, so LLVM neither reassociates nor
+  contracts): the walks are bit for bit those of a kernel compiled the ordinary way (``tests/test_walk_cli.py``,
+  ``tests/test_kernel.py``), and as fast (``scripts/bench.py``: real-time factor 39.1 against 38.7 the old way,
+  measured back to back);
+- compile nothing twice: :data:`PLAN` splits the work in halves (``ssp``: ``ssp_stage``, the projection and the
+  advance; ``dsp``: first ``ssp_dynamics``, the computed-torque half of ``ssp_stage``, then ``dsp_stage``), and a lock
+  file per (function, signature) makes a child that needs a callee the other one is compiling wait for it and load it
+  from the cache (without the locks both compiled the ~12 s of helpers they share);
+- run nothing: each entry point is compiled for the argument types of a representative call (as numba types a call
+  from Python).
+
+Measured on the development machine, otherwise idle: part ``ssp`` alone, cold, 21.4 s the old way and 15.0 s
+without the callees' machine code; the whole build (both children) 19.5-20.6 s the old way and 10.9-11.7 s now (the
+children finish within ~0.3 s of each other), the first ``walk.py --no-plots --no-html`` 21-22 s and 12.6-13.3 s.  The
+loops that copy into array slices in ``compiled.py`` (``_put``) are part of that: numba's slice assignment compiles
+the formatting of its shape-mismatch message (~1.5 s per process) and its checks at every site.  The parent process
+then loads the cache (~0.3 s).  If numba lacks the internals used here, the children compile the ordinary way (slower,
+same bits).
 """
 
 from __future__ import annotations
@@ -272,11 +290,11 @@ class _CompileOnly:
         disp.compile(tuple(disp.typeof_pyval(a) for a in args))
 
 
-def _compile_part(part: str, scenario: Path) -> None:
-    """Compile this part's functions (:data:`PLAN`) for the argument types a walk of ``scenario`` calls them with,
-    in order, into numba's disk cache; no compiled code runs."""
-    if part not in PLAN:
-        raise SystemExit(f"kernel build: unknown part {part!r} (expected one of {PARTS})")
+def sample_stage(scenario: Path) -> tuple:
+    """A :class:`StageKernel` of ``scenario`` and representative arguments of its calls, as a walk makes them:
+    ``(kern, stage_args, q, v, data, n_rates)``, where ``stage_args(phase)`` gives the arguments of
+    ``kern.stage(phase, ...)`` at the initial state (with its dynamics terms in ``data``) and ``n_rates`` is the
+    integrator's stage count (``SupportKernel.warm_up``)."""
     import numpy as np
     import pinocchio as pin
 
@@ -285,10 +303,8 @@ def _compile_part(part: str, scenario: Path) -> None:
     from humanoid_sim.contact.constraints import record_anchors
     from humanoid_sim.initial import initial_configuration
     from humanoid_sim.integrator import RungeKutta
-    from humanoid_sim.kernel import compiled, stage
     from humanoid_sim.kernel.stage import StageKernel
     from humanoid_sim.model import load_model
-    from humanoid_sim.phases import Phase
     from humanoid_sim.scenario import load_scenario
     from humanoid_sim.trajectory import ReferenceTrajectory
 
@@ -305,15 +321,29 @@ def _compile_part(part: str, scenario: Path) -> None:
     pin.nonLinearEffects(hm.model, data, q, v)
     n_rates = len(RungeKutta(hm.model, sc.simulation.method).tab.c)
 
-    def stage_of(phase: Phase) -> tuple:
+    def stage_args(phase) -> tuple:
         k = next(i for i, ph in enumerate(traj.phases) if ph.name == phase.value)
         table = traj.dsp_table(k) if phase.is_double_support else traj.ssp_table(k)
         return record_anchors(hm.model, q, phase.contacts), q, v, data, table, traj.phases[k].t_start
 
+    return kern, stage_args, q, v, data, n_rates
+
+
+def _compile_part(part: str, scenario: Path) -> None:
+    """Compile this part's functions (:data:`PLAN`) for the argument types a walk of ``scenario`` calls them with,
+    in order, into numba's disk cache; no compiled code runs."""
+    if part not in PLAN:
+        raise SystemExit(f"kernel build: unknown part {part!r} (expected one of {PARTS})")
+    import numpy as np
+
+    from humanoid_sim.kernel import compiled, stage
+    from humanoid_sim.phases import Phase
+
+    kern, stage_args, q, v, data, n_rates = sample_stage(scenario)
     ssp, dsp = Phase.LFFSSP, Phase.RFFDSP
-    calls = {"ssp_stage": lambda: kern.stage(ssp, *stage_of(ssp)),
-             "ssp_dynamics": lambda: kern.dynamics(ssp, stage_of(ssp)[0], q, v, data, np.empty(26)),
-             "dsp_stage": lambda: kern.stage(dsp, *stage_of(dsp)),
+    calls = {"ssp_stage": lambda: kern.stage(ssp, *stage_args(ssp)),
+             "ssp_dynamics": lambda: kern.dynamics(ssp, stage_args(ssp)[0], q, v, data, np.empty(26)),
+             "dsp_stage": lambda: kern.stage(dsp, *stage_args(dsp)),
              "project_on_support": lambda: kern.support.warm_up(q, n_rates),
              "advance_on_support": lambda: kern.support.warm_up(q, n_rates)}
     for name in PLAN[part]:
