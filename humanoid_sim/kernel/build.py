@@ -1,11 +1,12 @@
 """Fill numba's disk cache of the compiled kernel quickly: the first run after an install (or after an edit of
 ``kernel/compiled.py``) builds it in two child processes in parallel, ~11 s, instead of compiling in the walk's own
-process (~50 s measured before the changes below).
+process (~43 s).
 
 Where the time of a cold compile goes (the 2-core development machine, sim 1, numba 0.68):
 
-- ordinarily, in one process: ~50 s, of which ~11 s numba's own front end (typing, lowering) and ~38 s LLVM: function
-  passes (~5 s), the whole-module optimisation of every compiled function's library (~16 s) and machine code (~15 s);
+- ordinarily, in one process: ~50 s (before the copies below became loops), of which ~11 s numba's own front end
+  (typing, lowering) and ~38 s LLVM: function passes (~5 s), the whole-module optimisation of every compiled
+  function's library (~16 s) and machine code (~15 s);
 - numba gives every ``@njit`` function its own library and links each callee's code into its caller's library, where
   the whole-module optimisation runs again: a helper five calls deep is optimised five times; and it generates
   machine code for every library as soon as it is compiled (each array expression and library overload has one too:
@@ -20,8 +21,9 @@ So the children here (``python -m humanoid_sim.kernel.build PART SCENARIO``):
   compiled in full with every callee linked in.  Optimisation levels and inlining decide which instructions evaluate
   a formula, not its IEEE arithmetic (numba's code is compiled without fast-math, so LLVM neither reassociates nor
   contracts): the walks are bit for bit those of a kernel compiled the ordinary way (``tests/test_walk_cli.py``,
-  ``tests/test_kernel.py``), and as fast (``scripts/bench.py``: real-time factor 39.1 against 38.7 the old way,
-  measured back to back);
+  ``tests/test_kernel.py``), and as fast (sim 1's real-time factor, median of 15 runs, twice, back to back: 40.8 and
+  42.4 with this build's cache, 40.9 and 41.8 with the same code compiled the ordinary way, 40.9 and 41.9 before
+  these changes);
 - compile nothing twice: :data:`PLAN` splits the work in halves (``ssp``: ``ssp_stage``, the projection and the
   advance; ``dsp``: first ``ssp_dynamics``, the computed-torque half of ``ssp_stage``, then ``dsp_stage``), and a lock
   file per (function, signature) makes a child that needs a callee the other one is compiling wait for it and load it
@@ -30,10 +32,12 @@ So the children here (``python -m humanoid_sim.kernel.build PART SCENARIO``):
   from Python).
 
 Measured on the development machine, otherwise idle: part ``ssp`` alone, cold, 21.4 s the old way and 15.0 s
-without the callees' machine code; the whole build (both children) 19.5-20.6 s the old way and 10.9-11.7 s now (the
-children finish within ~0.3 s of each other), the first ``walk.py --no-plots --no-html`` 21-22 s and 12.6-13.3 s.  The
-loops that copy into array slices in ``compiled.py`` (``_put``) are part of that: numba's slice assignment compiles
-the formatting of its shape-mismatch message (~1.5 s per process) and its checks at every site.  The parent process
+without the callees' machine code; the whole build (both children) 19.2-20.6 s the old way and 10.9-11.8 s now (the
+children finish within ~0.5 s of each other); the first ``walk.py --no-plots --no-html`` 20.9-22.2 s and 12.6-13.5 s,
+the first ``walk.py`` with its figures and playback 24.7-25.6 s and 16.4-17.1 s.  The loops that copy into array
+slices in ``compiled.py`` (``_put``) are part of that: numba's slice assignment compiles the formatting of its
+shape-mismatch message (~1.5 s per process) and its checks at every site; the ordinary compile in one process
+(``HUMANOID_SIM_KERNEL_BUILD=0``) went from 48 s to 43 s with them.  The parent process
 then loads the cache (~0.3 s).  If numba lacks the internals used here, the children compile the ordinary way (slower,
 same bits).
 """
