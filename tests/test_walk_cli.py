@@ -358,6 +358,31 @@ def test_first_run_gives_the_same_bits_with_or_without_the_kernel_cache(tmp_path
         for k, v in ordinary.items():
             assert v.tobytes() == other[k].tobytes(), k  # bit for bit
     assert set(np.unique(ordinary["basic_phase"])) >= {0, 1, 2}  # single and double support both ran
+    # the build stores callees as LLVM bitcode without machine code: another process that calls one from Python
+    # (StageKernel.split calls the two halves of ssp_stage) loads it from the cache (no compile) and gets the bits of
+    # the entry point that has it linked in
+    r = subprocess.run([sys.executable, "-c", SPLIT_FROM_CACHE, str(SIM1)], capture_output=True, text=True, cwd=ROOT,
+                       timeout=600, env={**ENV, "NUMBA_CACHE_DIR": str(tmp_path / "cache-built")})
+    assert r.returncode == 0 and r.stdout.strip() == "same bits, loaded from the cache", r.stdout + r.stderr
+
+
+SPLIT_FROM_CACHE = """
+import sys
+from pathlib import Path
+from humanoid_sim.kernel import build, compiled
+from humanoid_sim.phases import Phase
+kern, stage_args, *_ = build.sample_stage(Path(sys.argv[1]))
+fused = kern.stage(Phase.LFFSSP, *stage_args(Phase.LFFSSP))
+kern.split = True
+split = kern.stage(Phase.LFFSSP, *stage_args(Phase.LFFSSP))
+for name in ("a", "lam", "thdd_c", "T_cmd", "tau", "log"):
+    a, b = getattr(fused, name), getattr(split, name)
+    assert a.tobytes() == b.tobytes(), (name, a, b)
+for disp in (compiled.ssp_stage, compiled.ssp_controller, compiled.ssp_dynamics):
+    hits, misses = sum(disp.stats.cache_hits.values()), sum(disp.stats.cache_misses.values())
+    assert hits == 1 and misses == 0, (disp, disp.stats)
+print("same bits, loaded from the cache")
+"""
 
 
 def test_kernel_build_children_compile_the_loaded_package(tmp_path, monkeypatch):

@@ -1,28 +1,52 @@
 """Fill numba's disk cache of the compiled kernel quickly: the first run after an install (or after an edit of
-``kernel/compiled.py``) builds it in parallel child processes instead of compiling ~50 s in the walk's own process.
+``kernel/compiled.py``) builds it in two child processes in parallel, ~11 s, instead of compiling in the walk's own
+process (~43 s).
 
-Where the time of a cold compile went (measured on the 2-core development machine, sim 1, numba 0.68):
+Where the time of a cold compile goes (the 2-core development machine, sim 1, numba 0.68):
 
-- ~50 s in all, of which ~11 s is numba's own front end (typing, lowering) and ~38 s LLVM: function passes (~5 s),
-  the whole-module optimisation of every compiled function's library (~16 s) and machine code (~15 s);
+- ordinarily, in one process: ~50 s (before the copies below became loops), of which ~11 s numba's own front end
+  (typing, lowering) and ~38 s LLVM: function passes (~5 s), the whole-module optimisation of every compiled
+  function's library (~16 s) and machine code (~15 s);
 - numba gives every ``@njit`` function its own library and links each callee's code into its caller's library, where
-  the whole-module optimisation runs again: a helper five calls deep is optimised five times.  Only the entry points
-  (:data:`ENTRY_POINTS`, the functions Python calls) ever run their own copy.
+  the whole-module optimisation runs again: a helper five calls deep is optimised five times; and it generates
+  machine code for every library as soon as it is compiled (each array expression and library overload has one too:
+  ~150 libraries for ``ssp_stage``), although a callee's code only ever runs linked into the entry points
+  (:data:`ENTRY_POINTS`, the functions Python calls).
 
-So the children here (``python -m humanoid_sim.kernel.build PART``) skip the whole-module optimisation of every
-library that is not an entry point; the entry points are optimised in full, with every callee linked in, so the code
-that runs is optimised as before.  Optimisation levels and inlining decide which instructions evaluate a formula, not
-its IEEE arithmetic (numba's code is compiled without fast-math, so LLVM neither reassociates nor contracts): the walk's
-numbers are bit for bit those of a kernel compiled the ordinary way (``tests/test_kernel.py`` checks a whole walk).
+So the children here (``python -m humanoid_sim.kernel.build PART SCENARIO``):
 
-The entry points are split over :data:`PARTS` (single-support stage; double-support stage, projection and
-integration), one child each, so both cores work.  The parent process then loads the cache (~0.3 s).  If numba lacks
-the internals used to skip the optimisation, the children compile the ordinary way (slower, same code).
+- skip the whole-module optimisation and the machine code of every library that is not an entry point: a callee
+  keeps its function-optimised LLVM IR, which its callers link, and goes to the cache as bitcode (a process that
+  calls it from Python has numba compile that to machine code on loading).  The entry points are optimised and
+  compiled in full with every callee linked in.  Optimisation levels and inlining decide which instructions evaluate
+  a formula, not its IEEE arithmetic (numba's code is compiled without fast-math, so LLVM neither reassociates nor
+  contracts): the walks are bit for bit those of a kernel compiled the ordinary way (``tests/test_walk_cli.py``,
+  ``tests/test_kernel.py``), and as fast (sim 1's real-time factor, median of 15 runs, twice, back to back: 40.8 and
+  42.4 with this build's cache, 40.9 and 41.8 with the same code compiled the ordinary way, 40.9 and 41.9 before
+  these changes);
+- compile nothing twice: :data:`PLAN` splits the work in halves (``ssp``: ``ssp_stage``, the projection and the
+  advance; ``dsp``: first ``ssp_dynamics``, the computed-torque half of ``ssp_stage``, then ``dsp_stage``), and a lock
+  file per (function, signature) makes a child that needs a callee the other one is compiling wait for it and load it
+  from the cache (without the locks both compiled the ~12 s of helpers they share);
+- run nothing: each entry point is compiled for the argument types of a representative call (as numba types a call
+  from Python).
+
+Measured on the development machine, otherwise idle: part ``ssp`` alone, cold, 21.4 s the old way and 15.0 s
+without the callees' machine code; the whole build (both children) 19.2-20.6 s the old way and 10.9-11.8 s now (the
+children finish within ~0.5 s of each other); the first ``walk.py --no-plots --no-html`` 20.9-22.2 s and 12.6-13.5 s,
+the first ``walk.py`` with its figures and playback 24.7-25.6 s and 16.4-17.1 s.  The loops that copy into array
+slices in ``compiled.py`` (``_put``) are part of that: numba's slice assignment compiles the formatting of its
+shape-mismatch message (~1.5 s per process) and its checks at every site; the ordinary compile in one process
+(``HUMANOID_SIM_KERNEL_BUILD=0``) went from 48 s to 43 s with them.  The parent process
+then loads the cache (~0.3 s).  If numba lacks the internals used here, the children compile the ordinary way (slower,
+same bits).
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -32,8 +56,16 @@ from typing import Any, Callable
 
 ENTRY_POINTS = ("ssp_stage", "dsp_stage", "project_on_support", "advance_on_support")
 """The compiled functions a walk calls from Python (``StageKernel.stage`` / ``project`` / ``advance``)."""
-PARTS = ("ssp", "dsp")
-"""Child processes of :func:`build`: ``ssp`` compiles ``ssp_stage``; ``dsp`` the rest of :data:`ENTRY_POINTS`."""
+PLAN = {"ssp": ("ssp_stage", "project_on_support", "advance_on_support"), "dsp": ("ssp_dynamics", "dsp_stage")}
+"""What each child process of :func:`build` compiles, in order: the entry points and, first in ``dsp``, the computed
+torque half of ``ssp_stage`` (which the ``ssp`` child then loads from the cache instead of compiling it too)."""
+PARTS = tuple(PLAN)
+"""Child processes of :func:`build`, one per core of the development machine."""
+LOCKS_ENV = "HUMANOID_SIM_KERNEL_LOCKS"
+"""Environment variable naming the folder of the children's per-function lock files (set by :class:`KernelBuild`)."""
+KEEP_MACHINE_CODE = ENTRY_POINTS + ("nrt", "multi3")
+"""Libraries the children generate machine code for: the entry points and numba's runtime helpers (which the entry
+points call by address)."""
 NUMBA_OPT = "2"
 """LLVM optimisation level of the children (numba's default is 3; level 2 runs the walk as fast, measured)."""
 
@@ -77,6 +109,7 @@ class KernelBuild:
         self.timeout = timeout
         self.procs: dict[str, subprocess.Popen] = {}
         self._err: dict[str, Any] = {}
+        self._locks: str | None = None
         self.started = 0.0
 
     def start(self) -> "KernelBuild":
@@ -84,6 +117,8 @@ class KernelBuild:
         root = str(Path(__file__).resolve().parents[2])
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         env.setdefault("NUMBA_OPT", NUMBA_OPT)
+        self._locks = tempfile.mkdtemp(prefix="humanoid_sim_kernel_locks_")
+        env[LOCKS_ENV] = self._locks
         self.started = time.monotonic()
         for part in self.parts:
             # stderr to a file, not a pipe: a child writing more than a pipe holds would block
@@ -136,6 +171,9 @@ class KernelBuild:
                 proc.wait()
         for fh in self._err.values():
             fh.close()
+        if self._locks is not None:
+            shutil.rmtree(self._locks, ignore_errors=True)
+            self._locks = None
 
 
 def build(scenario: str | Path, parts: tuple[str, ...] = PARTS, progress: Callable[[str, float], None] | None = None,
@@ -169,9 +207,98 @@ def _skip_callee_optimisation() -> bool:
     return True
 
 
-def _compile_part(part: str, scenario: Path) -> None:
-    """Call this part's entry points once on representative arguments of ``scenario`` (as a walk calls them), so
-    that numba compiles them and writes its cache."""
+def _skip_callee_machine_code() -> bool:
+    """In this (child) process, generate machine code only for the libraries of :data:`KEEP_MACHINE_CODE`.
+
+    numba compiles every ``@njit`` function (and every array expression and library overload it uses) to machine code
+    as soon as it is typed, although a callee's code only ever runs linked into its callers' libraries; the children
+    never call anything but entry points (:func:`_compile_part` does not even call those).  Here the other libraries
+    keep their (function-optimised) LLVM IR for linking, are not handed to the JIT, and go to the disk cache as
+    bitcode, which numba's cache reads back (compiling it to machine code then, in a process that calls one).
+    Returns whether the numba internals needed were found."""
+    try:
+        from numba.core import codegen
+    except ImportError:  # pragma: no cover
+        return False
+    lib = getattr(codegen, "CPUCodeLibrary", None)
+    jit = getattr(codegen, "JITCPUCodegen", None)
+    needed = ("_finalize_final_module", "serialize_using_object_code", "serialize_using_bitcode",
+              "_finalize_dynamic_globals", "_verify_declare_only_symbols")
+    if lib is None or jit is None or not all(hasattr(lib, n) for n in needed) or not hasattr(jit, "set_env"):
+        return False  # pragma: no cover - numba internals changed
+    finalize, serialize, set_env = lib._finalize_final_module, lib.serialize_using_object_code, jit.set_env
+
+    def finalize_final_module(self) -> None:
+        if self.name in KEEP_MACHINE_CODE:
+            finalize(self)
+            return
+        self._finalize_dynamic_globals()  # what numba's version does, less handing the module to the JIT
+        self._verify_declare_only_symbols()
+        self._humanoid_sim_ir_only = True
+        self._finalized = True
+
+    def serialize_using_object_code(self):
+        if getattr(self, "_humanoid_sim_ir_only", False):
+            return self.serialize_using_bitcode()
+        return serialize(self)
+
+    def set_env_if_defined(self, env_name: str, env: object) -> None:
+        # a library without machine code has no environment variable to point at its environment (never called)
+        if self._engine.get_global_value_address(env_name):
+            set_env(self, env_name, env)
+
+    lib._finalize_final_module = finalize_final_module
+    lib.serialize_using_object_code = serialize_using_object_code
+    jit.set_env = set_env_if_defined
+    return True
+
+
+def _compile_once_across_children(folder: str) -> bool:
+    """In this (child) process, compile each (function of ``compiled.py``, signature) under an exclusive lock file in
+    ``folder``, shared with the other children: a child that needs a callee the other one is compiling waits for it
+    and then loads it from numba's disk cache instead of compiling it a second time.  The call graph has no cycles,
+    so neither child can wait for a lock the waiting one holds.  Returns whether file locks are available."""
+    try:
+        import fcntl
+
+        from numba.core import dispatcher, sigutils
+    except ImportError:  # pragma: no cover - not POSIX: each child compiles what it needs
+        return False
+    original = dispatcher.Dispatcher.compile
+
+    def compile(self, sig):
+        py_func = getattr(self, "py_func", None)
+        if getattr(py_func, "__module__", None) != "humanoid_sim.kernel.compiled":
+            return original(self, sig)
+        args, _ = sigutils.normalize_signature(sig)
+        if tuple(args) in self.overloads:
+            return original(self, sig)
+        key = hashlib.sha1(repr((py_func.__qualname__, tuple(str(a) for a in args))).encode()).hexdigest()
+        with open(os.path.join(folder, key), "w") as fh:
+            fcntl.flock(fh, fcntl.LOCK_EX)  # released when the file closes
+            return original(self, sig)
+
+    dispatcher.Dispatcher.compile = compile
+    return True
+
+
+class _CompileOnly:
+    """Stands for a compiled function in :mod:`humanoid_sim.kernel.stage`: a call compiles it for the argument types
+    (as numba's dispatcher types a call from Python) and runs nothing."""
+
+    def __init__(self, dispatcher: Any) -> None:
+        self.dispatcher = dispatcher
+
+    def __call__(self, *args: Any) -> None:
+        disp = self.dispatcher
+        disp.compile(tuple(disp.typeof_pyval(a) for a in args))
+
+
+def sample_stage(scenario: Path) -> tuple:
+    """A :class:`StageKernel` of ``scenario`` and representative arguments of its calls, as a walk makes them:
+    ``(kern, stage_args, q, v, data, n_rates)``, where ``stage_args(phase)`` gives the arguments of
+    ``kern.stage(phase, ...)`` at the initial state (with its dynamics terms in ``data``) and ``n_rates`` is the
+    integrator's stage count (``SupportKernel.warm_up``)."""
     import numpy as np
     import pinocchio as pin
 
@@ -182,7 +309,6 @@ def _compile_part(part: str, scenario: Path) -> None:
     from humanoid_sim.integrator import RungeKutta
     from humanoid_sim.kernel.stage import StageKernel
     from humanoid_sim.model import load_model
-    from humanoid_sim.phases import Phase
     from humanoid_sim.scenario import load_scenario
     from humanoid_sim.trajectory import ReferenceTrajectory
 
@@ -197,21 +323,44 @@ def _compile_part(part: str, scenario: Path) -> None:
     pin.computeJointJacobiansTimeVariation(hm.model, data, q, v)
     pin.crba(hm.model, data, q)
     pin.nonLinearEffects(hm.model, data, q, v)
-    if part == "ssp":
-        phases = [Phase.LFFSSP]
-    elif part == "dsp":
-        phases = [Phase.RFFDSP]
-        kern.support.warm_up(q, len(RungeKutta(hm.model, sc.simulation.method).tab.c))
-    else:
-        raise SystemExit(f"kernel build: unknown part {part!r} (expected one of {PARTS})")
-    for phase in phases:
+    n_rates = len(RungeKutta(hm.model, sc.simulation.method).tab.c)
+
+    def stage_args(phase) -> tuple:
         k = next(i for i, ph in enumerate(traj.phases) if ph.name == phase.value)
         table = traj.dsp_table(k) if phase.is_double_support else traj.ssp_table(k)
-        kern.stage(phase, record_anchors(hm.model, q, phase.contacts), q, v, data, table, traj.phases[k].t_start)
+        return record_anchors(hm.model, q, phase.contacts), q, v, data, table, traj.phases[k].t_start
+
+    return kern, stage_args, q, v, data, n_rates
+
+
+def _compile_part(part: str, scenario: Path) -> None:
+    """Compile this part's functions (:data:`PLAN`) for the argument types a walk of ``scenario`` calls them with,
+    in order, into numba's disk cache; no compiled code runs."""
+    if part not in PLAN:
+        raise SystemExit(f"kernel build: unknown part {part!r} (expected one of {PARTS})")
+    import numpy as np
+
+    from humanoid_sim.kernel import compiled, stage
+    from humanoid_sim.phases import Phase
+
+    kern, stage_args, q, v, data, n_rates = sample_stage(scenario)
+    ssp, dsp = Phase.LFFSSP, Phase.RFFDSP
+    calls = {"ssp_stage": lambda: kern.stage(ssp, *stage_args(ssp)),
+             "ssp_dynamics": lambda: kern.dynamics(ssp, stage_args(ssp)[0], q, v, data, np.empty(26)),
+             "dsp_stage": lambda: kern.stage(dsp, *stage_args(dsp)),
+             "project_on_support": lambda: kern.support.warm_up(q, n_rates),
+             "advance_on_support": lambda: kern.support.warm_up(q, n_rates)}
+    for name in PLAN[part]:
+        for other in calls:  # the calls warm_up makes that are not this one's do nothing
+            setattr(stage, other, _CompileOnly(getattr(compiled, other)) if other == name else (lambda *a: None))
+        calls[name]()
 
 
 if __name__ == "__main__":  # pragma: no cover - the child process of build()
     if len(sys.argv) != 3:
         sys.exit("usage: python -m humanoid_sim.kernel.build PART SCENARIO  (PART: ssp or dsp)")
     _skip_callee_optimisation()
+    _skip_callee_machine_code()
+    if os.environ.get(LOCKS_ENV):
+        _compile_once_across_children(os.environ[LOCKS_ENV])
     _compile_part(sys.argv[1], Path(sys.argv[2]))

@@ -61,6 +61,42 @@ DSP_TABLE_LEN = len(DSP_TABLE)
 """Floats of the per-stage log vector (layout in ``stage.StageOutput``)."""
 
 
+
+# ----------------------------------------------------------------------------------------------- copies
+# Loops instead of slice assignment (``dst[a:b] = src``): numba's slice assignment also compiles the code that formats
+# its shape-mismatch message, which made up a good part of the kernel's compile time; a copy is exact either way.
+@njit
+def _put(dst: np.ndarray, o: int, src: np.ndarray) -> None:
+    """dst[o:o + src.size] = src (1-D arrays)."""
+    for i in range(src.size):
+        dst[o + i] = src[i]
+
+
+@njit
+def _put_flat(dst: np.ndarray, o: int, src: np.ndarray) -> None:
+    """dst[o:o + src.size] = src.ravel() (src 2-D, row-major order)."""
+    n, m = src.shape
+    for i in range(n):
+        for j in range(m):
+            dst[o + i * m + j] = src[i, j]
+
+
+@njit
+def _put_col(dst: np.ndarray, r: int, c: int, src: np.ndarray) -> None:
+    """dst[r:r + src.size, c] = src."""
+    for i in range(src.size):
+        dst[r + i, c] = src[i]
+
+
+@njit
+def _put_block(dst: np.ndarray, r: int, c: int, src: np.ndarray) -> None:
+    """dst[r:r + src.shape[0], c:c + src.shape[1]] = src."""
+    n, m = src.shape
+    for i in range(n):
+        for j in range(m):
+            dst[r + i, c + j] = src[i, j]
+
+
 # ----------------------------------------------------------------------------------------------- kinematics
 @njit
 def mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -246,11 +282,11 @@ def frame_motion_lwa(J: np.ndarray, dJ: np.ndarray, v: np.ndarray, support: np.n
     w = V[3:]
     alpha = A[3:]
     vel = np.empty(6)
-    vel[:3] = V[:3] + cross(w, pos)
-    vel[3:] = w
+    _put(vel, 0, V[:3] + cross(w, pos))
+    _put(vel, 3, w)
     acc = A[:3] + cross(alpha, pos) + cross(w, vel[:3])
-    out[:3, nv] = acc
-    out[3:, nv] = alpha
+    _put_col(out, 0, nv, acc)
+    _put_col(out, 3, nv, alpha)
     return vel
 
 
@@ -268,18 +304,18 @@ def frame_motion_local(J: np.ndarray, dJ: np.ndarray, v: np.ndarray, support: np
             lin[0] = J[0, c] + (J[4, c] * pos[2] - J[5, c] * pos[1])
             lin[1] = J[1, c] + (J[5, c] * pos[0] - J[3, c] * pos[2])
             lin[2] = J[2, c] + (J[3, c] * pos[1] - J[4, c] * pos[0])
-            Jout[:3, c] = mv(RT, lin)
-            Jout[3:, c] = mv(RT, ang)
+            _put_col(Jout, 0, c, mv(RT, lin))
+            _put_col(Jout, 3, c, mv(RT, ang))
         else:
             for r in range(6):
                 Jout[r, c] = 0.0
     V, A = spatial_motion(J, dJ, v, support)
     vel = np.empty(6)
     acc = np.empty(6)
-    vel[:3] = mv(RT, V[:3] + cross(V[3:], pos))
-    vel[3:] = mv(RT, V[3:])
-    acc[:3] = mv(RT, A[:3] + cross(A[3:], pos))
-    acc[3:] = mv(RT, A[3:])
+    _put(vel, 0, mv(RT, V[:3] + cross(V[3:], pos)))
+    _put(vel, 3, mv(RT, V[3:]))
+    _put(acc, 0, mv(RT, A[:3] + cross(A[3:], pos)))
+    _put(acc, 3, mv(RT, A[3:]))
     return vel, acc
 
 
@@ -318,8 +354,8 @@ def log6(R: np.ndarray, p: np.ndarray) -> np.ndarray:
         alpha = theta * st / (2.0 * (1.0 - ct))
         beta = 1.0 / t2 - st / (2.0 * theta * (1.0 - ct))
     out = np.empty(6)
-    out[:3] = alpha * p - 0.5 * cross(w, p) + (beta * (w[0] * p[0] + w[1] * p[1] + w[2] * p[2])) * w
-    out[3:] = w
+    _put(out, 0, alpha * p - 0.5 * cross(w, p) + (beta * (w[0] * p[0] + w[1] * p[1] + w[2] * p[2])) * w)
+    _put(out, 3, w)
     return out
 
 
@@ -327,10 +363,10 @@ def log6(R: np.ndarray, p: np.ndarray) -> np.ndarray:
 def action_matrix(R: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Ad(M) (6 x 6) of M = (R, p) acting on [linear; angular] motions: [[R, [p]x R], [0, R]]."""
     A = np.zeros((6, 6))
-    A[:3, :3] = R
-    A[3:, 3:] = R
+    _put_block(A, 0, 0, R)
+    _put_block(A, 3, 3, R)
     for c in range(3):
-        A[:3, 3 + c] = cross(p, R[:, c])
+        _put_col(A, 0, 3 + c, cross(p, R[:, c]))
     return A
 
 
@@ -483,8 +519,8 @@ def _body_task(motion: np.ndarray, vel: np.ndarray, fpos: np.ndarray, fparent: n
     T = motion[point].copy()
     v6 = vel[point].copy()
     if fparent[point] != fparent[body]:
-        T[3:] = motion[body][3:]
-        v6[3:] = vel[body][3:]
+        _put_block(T, 3, 0, motion[body][3:])
+        _put(v6, 3, vel[body][3:])
     D = T - W
     d = fpos[weld] - fpos[point]  # S = [d]x: S x = d x x
     for c in range(nv + 1):
@@ -494,7 +530,7 @@ def _body_task(motion: np.ndarray, vel: np.ndarray, fpos: np.ndarray, fparent: n
         D[2, c] -= d[0] * wy - d[1] * wx
     J = np.empty((6, jcols.size))
     for i in range(jcols.size):
-        J[:, i] = D[:, jcols[i]] * jsign[i]
+        _put_col(J, 0, i, D[:, jcols[i]] * jsign[i])
     return J, D[:, nv].copy(), v6
 
 
@@ -504,10 +540,10 @@ def _tracking_rows(A: np.ndarray, r: np.ndarray, J6: np.ndarray, drift6: np.ndar
                    dt: float) -> None:
     """The 12 rows (position 3, velocity 6, C_diag orientation 3) of one task body (eqs. 5.1-5.3, errata C-1)."""
     h2 = 0.5 * dt * dt
-    A[0:3] = J6[:3] * h2
-    r[0:3] = ref_p - (p + v6[:3] * dt + drift6[:3] * h2)
-    A[3:9] = J6 * dt
-    r[3:9] = ref_v - (v6 + drift6 * dt)
+    _put_block(A, 0, 0, J6[:3] * h2)
+    _put(r, 0, ref_p - (p + v6[:3] * dt + drift6[:3] * h2))
+    _put_block(A, 3, 0, J6 * dt)
+    _put(r, 3, ref_v - (v6 + drift6 * dt))
     w = v6[3:]
     L = np.zeros((3, 3))  # d/dt C_diag = L w (taskspace.cdiag_rate_matrix)
     L[0, 1], L[0, 2] = R[2, 0], -R[1, 0]
@@ -517,7 +553,7 @@ def _tracking_rows(A: np.ndarray, r: np.ndarray, J6: np.ndarray, drift6: np.ndar
     for i in range(3):
         diag[i] = R[i, i]
     bias = w * mtv(R, w) - (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * diag  # diag([w]x [w]x C)
-    A[9:12] = mm(L, J6[3:]) * h2
+    _put_block(A, 9, 0, mm(L, J6[3:]) * h2)
     pred = diag + mv(L, w) * dt + (mv(L, drift6[3:]) + bias) * h2
     for i in range(3):
         r[9 + i] = ref_R[i, i] - pred[i]
@@ -565,7 +601,7 @@ def _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, 
     ra = np.zeros(12)
     Js = np.empty((6, ns))
     for i in range(ns):
-        Js[:, i] = J[:, xs[i]]
+        _put_col(Js, 0, i, J[:, xs[i]])
     _tracking_rows(Aa, ra, Js, drift, fpos[F_PC17], v6, fR[F_O17], ref_a_p, ref_a_v, ref_a_R, dta)
     dg = np.empty(ns)
     for i in range(ns):
@@ -581,7 +617,7 @@ def _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, 
     rb = np.zeros(12)
     Jo = np.empty((6, no))
     for i in range(no):
-        Jo[:, i] = J[:, xo[i]]
+        _put_col(Jo, 0, i, J[:, xo[i]])
     _tracking_rows(Ab, rb, Jo, drift, fpos[toe_pt], v6, fR[other_weld], ref_b_p, ref_b_v, ref_b_R, dtb)
     dg = np.empty(no)
     for i in range(no):
@@ -628,21 +664,21 @@ def _controller_dsp(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_p
     Ja, da, va = _body_task(motion, vel, fpos, fparent, F_PC17, F_O17, root, jcols, jsign)
     Js = np.empty((6, ns))
     for i in range(ns):
-        Js[:, i] = Ja[:, x[i]]
+        _put_col(Js, 0, i, Ja[:, x[i]])
     ra = np.zeros(12)
     Aa = np.zeros((12, ns))
     _tracking_rows(Aa, ra, Js, da, fpos[F_PC17], va, fR[F_O17], ref_p, ref_v, ref_R, dt)
     Jb, db, vb = _body_task(motion, vel, fpos, fparent, F_PC17, F_O17, other_weld, jcols, jsign)
     Jo = np.empty((6, no))
     for i in range(no):
-        Jo[:, i] = Jb[:, x[ns + i]]
+        _put_col(Jo, 0, i, Jb[:, x[ns + i]])
     rb = np.zeros(12)
     Ab = np.zeros((12, no))
     _tracking_rows(Ab, rb, Jo, db, fpos[F_PC17], vb, fR[F_O17], ref_p, ref_v, ref_R, dt)
-    A[:12, :ns] = Aa
-    A[12:, ns:] = Ab
-    r[:12] = ra
-    r[12:] = rb
+    _put_block(A, 0, 0, Aa)
+    _put_block(A, 12, ns, Ab)
+    _put(r, 0, ra)
+    _put(r, 12, rb)
     dg = np.empty(n)
     for i in range(n):
         dg[i] = W_q[i] * ha * -(th[x[i]] + thd[x[i]] * dt)
@@ -650,13 +686,13 @@ def _controller_dsp(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_p
     Jc, dc, _ = _body_task(motion, vel, fpos, fparent, other_weld, other_weld, root, jcols, jsign)
     K = np.zeros((n + 6, n + 6))
     rhs = np.zeros(n + 6)
-    K[:n, :n] = Z
+    _put_block(K, 0, 0, Z)
     for i in range(n):
         for c in range(6):
             K[i, n + c] = Jc[c, x[i]]
             K[n + c, i] = Jc[c, x[i]]
-    rhs[:n] = g
-    rhs[n:] = -dc
+    _put(rhs, 0, g)
+    _put(rhs, n, -dc)
     sol = _solve_dense(K, rhs)
     qdd = np.zeros(26)
     for i in range(n):
@@ -747,15 +783,15 @@ def _inverse_square(Jc, r, M, h, a_des, Rb, pb, Rf, pf, lock_v) -> tuple[np.ndar
     a = a_des.copy()
     a[lock_v] = -r[6]
     Jb_inv = action_matrix(mtm(Rb, Rf), mtv(Rb, pf - pb))
-    a[:6] = mv(Jb_inv, -r[:6] - mv(Jc[:6, 6:], a[6:]))
+    _put(a, 0, mv(Jb_inv, -r[:6] - mv(Jc[:6, 6:], a[6:])))
     b = mv(M, a) + h
     lam_w = mtv(Jb_inv, b[:6])
     g = b - mtv(Jc[:6], lam_w)
     tau = np.zeros(nv)
-    tau[6:] = g[6:]
+    _put(tau, 6, g[6:])
     tau[lock_v] = 0.0
     lam = np.empty(7)
-    lam[:6] = lam_w
+    _put(lam, 0, lam_w)
     lam[6] = g[lock_v]
     return a, tau, lam
 
@@ -860,9 +896,11 @@ def _stage_state(q, v, J, dJ, parents, axis, idx_q, jR, jp, support, fparent, fR
     buffers); returns the thesis joint deviations theta - theta0 and rates (26, each)."""
     forward_kinematics(q, parents, axis, idx_q, jR, jp, R, p)
     for i in range(fparent.size):
-        fR[i], fpos[i] = frame_placement(R, p, fparent[i], fRp[i], fpp[i])
+        Rf, pf = frame_placement(R, p, fparent[i], fRp[i], fpp[i])
+        _put_block(fR[i], 0, 0, Rf)
+        _put(fpos[i], 0, pf)
         if fneed[i]:
-            vel[i] = frame_motion_lwa(J, dJ, v, support[fparent[i]], fpos[i], motion[i])
+            _put(vel[i], 0, frame_motion_lwa(J, dJ, v, support[fparent[i]], fpos[i], motion[i]))
     th = np.empty(26)
     thd = np.empty(26)
     for i in range(26):
@@ -891,8 +929,8 @@ def ssp_controller(q, v, J, dJ, tab, t, parents, axis, idx_q, jR, jp,
     ref_a_p, ref_a_v, ref_a_R = np.empty(3), np.empty(6), np.empty((3, 3))
     ref_b_p, ref_b_v, ref_b_R = np.empty(3), np.empty(6), np.empty((3, 3))
     ssp_references(tab, t + fp_[0], t + fp_[1], ref_a_p, ref_a_v, ref_a_R, ref_b_p, ref_b_v, ref_b_R)
-    qdd_out[:] = _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, ref_a_v, ref_a_R, ref_b_p,
-                       ref_b_v, ref_b_R, ip, fp_)
+    _put(qdd_out, 0, _controller(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_a_p, ref_a_v, ref_a_R,
+                                 ref_b_p, ref_b_v, ref_b_R, ip, fp_))
 
 
 @njit
@@ -946,17 +984,17 @@ def _finish(J, dJ, v, qdd, M, h, Jc, a, tau, lam, pos_err, ori_err, R, p, fR, fp
         log[0] = -1.0  # a normal matrix or KKT system was singular: the reference path reports it
     res = mv(M, a) + h - tau - mtv(Jc, lam)
     log[1], log[2], log[3] = pos_err, ori_err, np.max(np.abs(res))
-    log[4:7] = fpos[F_PC17]
-    log[7:10] = vel[F_PC17][:3]
-    log[10:19] = fR[F_O17].ravel()
-    log[19:22] = fpos[F_TPR]
-    log[22:25] = fpos[F_TPL]
-    log[25:34] = fR[F_O1].ravel()
-    log[34:43] = fR[F_O2].ravel()
-    a_out[:] = a
-    lam_out[:] = lam
-    T_out[:] = T
-    tau_out[:] = tau
+    _put(log, 4, fpos[F_PC17])
+    _put(log, 7, vel[F_PC17][:3])
+    _put_flat(log, 10, fR[F_O17])
+    _put(log, 19, fpos[F_TPR])
+    _put(log, 22, fpos[F_TPL])
+    _put_flat(log, 25, fR[F_O1])
+    _put_flat(log, 34, fR[F_O2])
+    _put(a_out, 0, a)
+    _put(lam_out, 0, lam)
+    _put(T_out, 0, T)
+    _put(tau_out, 0, tau)
 
 
 @njit
@@ -1005,7 +1043,8 @@ def dsp_stage(q, v, J, dJ, M_upper, h, tab, t, anchor_R, anchor_p, lock_anchor, 
                            theta_q, theta0, fneed, R, p, fR, fpos, motion, vel)
     ref_p, ref_v, ref_R = np.empty(3), np.empty(6), np.empty((3, 3))
     dsp_references(tab, t + fp_[0], ref_p, ref_v, ref_R)
-    qdd_out[:] = _controller_dsp(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_p, ref_v, ref_R, ip, fp_)
+    _put(qdd_out, 0, _controller_dsp(motion, vel, fpos, fR, fparent, th, thd, jcols, jsign, ref_p, ref_v, ref_R, ip,
+                                     fp_))
     M = _symmetric(M_upper)
     a_des = _a_desired(qdd_out, jcols, jsign, v.size)
     Jc, r, pos_err, ori_err = _contact_rows(J, dJ, v, q, support, fparent, fR, fpos, welds, anchor_R, anchor_p,
@@ -1032,13 +1071,13 @@ def _project_inplace(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, pare
     pb = q[:3].copy()
     X = mm(anchor_R, Rf.T)
     Rn = mm(X, Rb)
-    q[:3] = anchor_p + mv(X, pb - pf)
+    _put(q, 0, anchor_p + mv(X, pb - pf))
     quat = np.empty(4)
     rot_to_quat(Rn, quat)
     # unit length, as Pinocchio's integrate leaves it (without this the round-off of a slightly non-unit quaternion
     # would compound from step to step, since the compiled advance does not pass through integrate)
     n = math.sqrt(quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3])
-    q[3:7] = quat / n
+    _put(q, 3, quat / n)
     # LOCAL Jacobian of the foot frame times the joint rates (the joint columns do not depend on the base)
     vj = np.zeros(3)
     wj = np.zeros(3)
@@ -1052,17 +1091,17 @@ def _project_inplace(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, pare
     ang = mtv(Rf, wj)
     Ad = action_matrix(mtm(Rb, Rf), mtv(Rb, pf - pb))
     tw = np.empty(6)
-    tw[:3] = lin
-    tw[3:] = ang
-    v[:6] = -mv(Ad, tw)
+    _put(tw, 0, lin)
+    _put(tw, 3, ang)
+    _put(v, 0, -mv(Ad, tw))
 
 
 @njit
 def project_on_support(q, v, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR, jp,
                        support, f_parent, f_R, f_p, q_out, v_out) -> None:
     """(q, v) projected on the support foot (:func:`_project_inplace`) into (q_out, v_out)."""
-    q_out[:] = q
-    v_out[:] = v
+    _put(q_out, 0, q)
+    _put(v_out, 0, v)
     _project_inplace(q_out, v_out, anchor_R, anchor_p, lock_anchor, lock_q, lock_v, parents, axis, idx_q, idx_v, jR,
                      jp, support, f_parent, f_R, f_p)
 
@@ -1093,7 +1132,7 @@ def advance_on_support(q, v, coeffs, vs, accs, h, anchor_R, anchor_p, lock_ancho
             for i in range(nv):
                 dq[i] = dq[i] + c * x[i]
                 dv[i] = dv[i] + c * y[i]
-    q_out[:] = q
+    _put(q_out, 0, q)
     for j in range(2, parents.size):
         q_out[idx_q[j]] = q[idx_q[j]] + h * dq[idx_v[j]]
     for i in range(nv):
