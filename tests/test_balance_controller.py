@@ -199,33 +199,20 @@ def test_bad_settings_are_named(field, value, message):
         BalanceSettings(**{field: value})
 
 
-def test_references_wait_for_a_late_phase():
-    """The plan's clock: a touchdown (a double support's start) that comes late shifts every later reference by
-    its lateness; an early one does not move the plan forward; a later, smaller lateness keeps the larger shift; a
-    single support's start (scheduled, on the step grid) shifts nothing.  Hand-computed times."""
-    from types import SimpleNamespace
+def test_references_are_read_on_the_plans_clock(hm, sc, state):
+    """A late touchdown (``Observation.plan_delay``, the phase selector's) delays every reference: the command at t
+    with a delay d is the command at t - d with none; with ``time_shift`` off the delay is ignored."""
+    from dataclasses import replace
 
-    def ph(t0: float, swing: str | None) -> SimpleNamespace:
-        return SimpleNamespace(t_start=t0, swing_foot=swing)
-
-    traj = SimpleNamespace(phases=[ph(0.0, None), ph(1.0, "R"), ph(2.0, None), ph(3.0, "L"), ph(4.0, None),
-                                   ph(5.0, "R"), ph(6.0, None)])
-    ctrl = BalanceController()
-    ctrl.traj, ctrl._phase_k, ctrl._shift = traj, -1, 0.0
-    assert ctrl._reference_time(0, 0.0) == 0.0
-    assert ctrl._reference_time(0, 0.5) == 0.5
-    assert ctrl._reference_time(1, 1.004) == 1.004                             # a single support: no shift
-    assert ctrl._reference_time(2, 2.07) == pytest.approx(2.0, abs=1e-15)      # touchdown 0.07 s late: plan waits
-    assert ctrl._reference_time(2, 2.5) == pytest.approx(2.43, abs=1e-15)
-    assert ctrl._reference_time(3, 3.075) == pytest.approx(3.005, abs=1e-15)  # its start 0.075 s late: still 0.07
-    assert ctrl._reference_time(4, 4.05) == pytest.approx(3.98, abs=1e-15)     # 0.05 s late: the 0.07 s stays
-    assert ctrl._reference_time(5, 5.1) == pytest.approx(5.03, abs=1e-15)
-    assert ctrl._reference_time(6, 6.2) == pytest.approx(6.0, abs=1e-15)       # 0.2 s late
+    sim, obs = state
+    ctl = sim.controller
+    d = 0.03
+    late = ctl(replace(obs, plan_delay=d)).tau
+    assert np.array_equal(late, ctl(replace(obs, t=obs.t - d, plan_delay=0.0)).tau)
+    assert not np.allclose(late, ctl(obs).tau, rtol=0, atol=1e-3)      # 30 ms of the plan moves the torques
     off = BalanceController(BalanceSettings(time_shift=False))
-    off.traj, off._phase_k, off._shift = traj, -1, 0.0
-    assert off._reference_time(2, 2.07) == 2.07
-
-
+    off.setup(ControlContext(hm, sc, sim.traj, sim.q0, sim.engine.name, sim.engine.constraints))
+    assert np.array_equal(off(replace(obs, plan_delay=d)).tau, off(obs).tau)
 def test_zmp_walk_is_feasible_on_welded_feet(hm, sc):
     """Issue #13's acceptance on sim 3 with only the gait lines added, judged by the contact audit."""
     sim = Simulator(hm, sc)

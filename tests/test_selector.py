@@ -59,3 +59,19 @@ def test_phase_bookkeeping(sel):
     assert sel.should_switch(0.78 + 1.1 * t_dsp + 0.01, far, None)
     sel.close(0.9)
     assert sel.records[-1].t_end == 0.9
+
+
+def test_the_plans_delay_counts_late_touchdowns_only(sel):
+    """``plan_delay``: a double support (a touchdown) that starts late delays the plan's clock by its lateness; an
+    early one does not move it forward; a later, smaller lateness keeps the larger delay; a single support's start
+    (on the step grid, up to half a step after its planned end) counts for nothing.  Times from the sim 1 schedule."""
+    ph = sel.traj.phases
+    assert ph[0].swing_foot is not None and ph[1].swing_foot is None     # sim 1: LFFSSP, RFFDSP, RFFSSP, ...
+    expected = 0.0
+    for k, lateness in ((1, -0.02), (2, 0.004), (3, 0.07), (4, 0.075), (5, 0.05), (6, 0.004), (7, 0.2)):
+        sel.advance(ph[k].t_start + lateness, None)
+        assert sel.k == k
+        if ph[k].swing_foot is None:
+            expected = max(expected, lateness)
+        assert sel.plan_delay == pytest.approx(expected, abs=1e-12)
+    assert expected == 0.2

@@ -199,25 +199,18 @@ class BalanceController:
         self._upper[16:] = True                                     # theta18..theta27 (eq. 4.5)
         s = self.settings
         self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
-        self._phase_k, self._shift = -1, 0.0
         self._lift_k, self._lift0 = -1, 0.0     # the swing (its phase index) and its heel lift at lift-off, rad
         self._box_cache: dict[tuple, np.ndarray] = {}
         self._lower = np.tril_indices(nv, -1)
 
-    def _reference_time(self, k: int, t: float) -> float:
-        """The time at which the references are read, s: ``t`` minus the largest lateness of a touchdown so far (a
-        double support's start against the plan; ``time_shift`` on), so that every reference (hip plan, swing path,
-        toe-off) runs on the plan's clock.  On real ground a touchdown is sensed, not scheduled: a foot that lands
-        0.07 s late would otherwise start the next swing 0.07 s into its path (the swing foot lags its reference by
-        ~1 cm and is kicked toward it, rocking the stance foot) and the hip plan would move on to a foot that is not
-        down yet.  Early touchdowns do not shift the plan forward (it only waits).  A double support ends on this
-        clock (``PhaseSelector.plan_delay``, the same rule) on the step grid, up to half a step late: the single
-        supports' starts are not counted, or the shift would ratchet up at every step."""
-        if k != self._phase_k:
-            self._phase_k = k
-            if self.traj.phases[k].swing_foot is None and self.settings.time_shift:   # started by a touchdown
-                self._shift = max(self._shift, t - self.traj.phases[k].t_start)
-        return t - self._shift
+    def _reference_time(self, obs: Observation) -> float:
+        """The time at which the references are read, s: the plan's clock ``obs.t - obs.plan_delay`` (``time_shift``
+        on), so that every reference (hip plan, swing path, toe-off) waits for a late touchdown.  On real ground a
+        touchdown is sensed, not scheduled: a foot that lands 0.07 s late would otherwise start the next swing 0.07 s
+        into its path (the swing foot lags its reference by ~1 cm and is kicked toward it, rocking the stance foot)
+        and the hip plan would move on to a foot that is not down yet.  The phase selector keeps that delay (it also
+        ends double supports on the same clock): only touchdowns count, and early ones do not move the plan forward."""
+        return obs.t - obs.plan_delay if self.settings.time_shift else obs.t
 
     def run_info(self) -> dict:
         """For the run's summary: calls, and calls whose contact constraints had to be relaxed."""
@@ -227,8 +220,8 @@ class BalanceController:
     # ------------------------------------------------------------------ one call
     def __call__(self, obs: Observation) -> Command:
         self.calls += 1
-        k, phase, t_now, q, v = obs.k, obs.phase, obs.t, obs.q, obs.v
-        t = self._reference_time(k, t_now)   # the plan's clock: it waits for a late touchdown
+        k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
+        t = self._reference_time(obs)   # the plan's clock: it waits for a late touchdown
         s = self.settings
         model, d = self.model, self.dyn.data
         rows = self.dyn.prepare(phase.contacts, obs.anchors, q, v)   # kinematics, Jacobians, M (upper), nle

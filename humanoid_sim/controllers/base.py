@@ -64,7 +64,10 @@ class Observation:
     t: time (s); k: index of the current phase in ``traj.phases``; phase: its contact phase; q, v: the state
     (Pinocchio conventions, see the module docstring); anchors: where the phase's held bodies are held (weld
     placements, toe-lock angles; ``humanoid_sim.contact.Anchors``) on engines that hold them, else the feet's
-    placements at touchdown; stage: the integration stage within the step (0 = the step's start).
+    placements at touchdown; stage: the integration stage within the step (0 = the step's start); plan_delay: how
+    much later than planned the latest touchdown so far came (s, >= 0; the phase selector's
+    :attr:`~humanoid_sim.selector.PhaseSelector.plan_delay`): the plan's clock is ``t - plan_delay``, the time at
+    which a controller that waits for late touchdowns reads its references.
     """
 
     t: float
@@ -74,6 +77,7 @@ class Observation:
     v: np.ndarray
     anchors: Anchors | None
     stage: int = 0
+    plan_delay: float = 0.0
 
 
 @dataclass

@@ -205,7 +205,7 @@ class MujocoEngine:
             if i:
                 q, v = sim.state()
                 checks.check_stage(ti, q, v, i)
-            cmd = control(Observation(ti, k, phase, q, v, anchors, i))
+            cmd = control(Observation(ti, k, phase, q, v, anchors, i, checks.plan_delay))
             tau = self._tau(q, cmd)
             # one MuJoCo step first: its acceleration and contact forces are those of the state at ti
             sim.step(tau, sim.timestep)

@@ -138,7 +138,7 @@ class WeldEngine:
 
         def f(ts: float, qs: np.ndarray, vs: np.ndarray, stage: int) -> np.ndarray:
             checks.check_stage(ts, qs, vs, stage)
-            cmd = control(Observation(ts, k, phase, qs, vs, anchors, stage))
+            cmd = control(Observation(ts, k, phase, qs, vs, anchors, stage, checks.plan_delay))
             a, lam = self._motion(phase, anchors, qs, vs, cmd)
             checks.check_acceleration(ts, a)
             if stage == 0:
