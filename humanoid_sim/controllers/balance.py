@@ -502,7 +502,8 @@ class BalanceController:
 
     def _solve(self, G, g, Ceq, beq, Cin, bin_, cop_rows) -> tuple[np.ndarray, int]:
         """min 1/2 x^T G x - g^T x  s.t.  Ceq x = beq, Cin x >= bin_ (DAQP: a dual active-set method for small
-        dense QPs, exact to its tolerances); relaxed (CoP rows dropped, then every inequality) when infeasible."""
+        dense QPs, exact to its tolerances); relaxed (CoP rows dropped, then every inequality) when DAQP reports no optimum
+        (an infeasible set of constraints: the state is beyond what the soles can carry)."""
         meq = len(beq)
         A_all = np.vstack([Ceq, Cin])
         lo_all = np.concatenate([beq, bin_])

@@ -87,6 +87,7 @@ LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _NO_CORNERS = np.zeros((4, 3))
 """What :meth:`MujocoEngine._measure` hands a slip meter for a box that does not support (it reads no corners)."""
 
+
 class MujocoFall(SimulationError):
     """The robot fell on MuJoCo's ground; the message says when and how (which foot, which edge)."""
 
