@@ -61,7 +61,6 @@ DSP_TABLE_LEN = len(DSP_TABLE)
 """Floats of the per-stage log vector (layout in ``stage.StageOutput``)."""
 
 
-
 # ----------------------------------------------------------------------------------------------- copies
 # Loops instead of slice assignment (``dst[a:b] = src``): numba's slice assignment also compiles the code that formats
 # its shape-mismatch message, which made up a good part of the kernel's compile time; a copy is exact either way.
