@@ -84,6 +84,7 @@ from humanoid_sim.actuators import Actuators
 from humanoid_sim.audit import SoleGeometry
 from humanoid_sim.controllers.base import Command, ControlContext, ControllerError, Observation
 from humanoid_sim.phases import FOOT_SPECS, TOE_POINT_FRAME, Phase
+from humanoid_sim.trajectory.polynomials import smoothstep
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _DAQP_INF = 1e30          # DAQP reads a bound of 1e30 or more as no bound
@@ -270,13 +271,14 @@ class BalanceController:
             # is ramped in over swing_ramp_s (smoothstep), or the swing leg's reaction jolts the stance foot
             xs = (t - info.t_start) / s.swing_ramp_s
             if xs < 1.0:
-                a_ff = a_ff * (max(xs, 0.0) ** 2 * (3.0 - 2.0 * max(xs, 0.0)))
+                a_ff = a_ff * smoothstep(max(xs, 0.0))
             # aim the last 20 % of the swing landing_depth_m below the path (smoothstep): on real ground the sole
             # then meets the ground on time and presses it (the path ends with the sole ~0.5 mm above it)
             u = (t - info.t_start) / info.duration
             depth = s.landing_depth_m if self._real_ground else 0.0
             if u > 0.8 and depth > 0.0:
                 x = min(1.0, (u - 0.8) / 0.2)
+                # depth times a smoothstep, written out: depth * smoothstep(x) rounds differently
                 pt = pt - np.array([0.0, 0.0, depth * x * x * (3.0 - 2.0 * x)])
                 v6 = v6.copy()
                 v6[2] -= depth * 6.0 * x * (1.0 - x) / (0.2 * info.duration)
@@ -315,7 +317,7 @@ class BalanceController:
                 self._lift0 = min(max(math.atan2(Rrel[0, 2], Rrel[0, 0]), 0.0), s.heel_lift_rad)
             if xr < 1.0 and self._lift0 > 0.0:
                 lift0 = self._lift0
-                ang = lift0 * (1.0 - xr * xr * (3.0 - 2.0 * xr))
+                ang = lift0 * (1.0 - smoothstep(xr))
                 dang = -lift0 * 6.0 * xr * (1.0 - xr) / s.heel_return_time_s
                 ddang = -lift0 * 6.0 * (1.0 - 2.0 * xr) / s.heel_return_time_s ** 2
                 Rm = Rr @ _rot_y(ang)
@@ -330,7 +332,7 @@ class BalanceController:
             foot = "R" if phase.support_foot == "L" else "L"
             ftoe, fmain = self.fid[FOOT_SPECS[foot].toe_frame], self.fid[FOOT_SPECS[foot].main_frame]
             x = min(1.0, (t - info.t_start) / min(info.duration, s.heel_lift_time_s))
-            ang = s.heel_lift_rad * x * x * (3.0 - 2.0 * x)
+            ang = s.heel_lift_rad * x * x * (3.0 - 2.0 * x)   # as written (a smoothstep): rounding kept
             R_ref = d.oMf[ftoe].rotation @ _rot_y(ang)
             Jm = pin.getFrameJacobian(model, d, fmain, LWA)
             wm = pin.getFrameVelocity(model, d, fmain, LWA).angular
@@ -502,8 +504,8 @@ class BalanceController:
 
     def _solve(self, G, g, Ceq, beq, Cin, bin_, cop_rows) -> tuple[np.ndarray, int]:
         """min 1/2 x^T G x - g^T x  s.t.  Ceq x = beq, Cin x >= bin_ (DAQP: a dual active-set method for small
-        dense QPs, exact to its tolerances); relaxed (CoP rows dropped, then every inequality) when DAQP reports no optimum
-        (an infeasible set of constraints: the state is beyond what the soles can carry)."""
+        dense QPs, exact to its tolerances); relaxed (CoP rows dropped, then every inequality) when DAQP reports no
+        optimum (an infeasible set of constraints: the state is beyond what the soles can carry)."""
         meq = len(beq)
         A_all = np.vstack([Ceq, Cin])
         lo_all = np.concatenate([beq, bin_])

@@ -38,6 +38,7 @@ from scipy.optimize import brentq
 
 from humanoid_sim.initial import LEG_THETAS
 from humanoid_sim.model import HumanoidModel
+from humanoid_sim.trajectory.polynomials import smoothstep
 
 from .errors import GaitError
 from .preview import _finite_array
@@ -118,7 +119,7 @@ class WalkPosture:
             for k in range(n):
                 since = since + 1 if free[k, i] else 0
                 tau = 1.0 if self.heel_ramp_s == 0 else min(1.0, (since - 1) * self.T / self.heel_ramp_s)
-                self._ramp[k, i] = tau * tau * (3.0 - 2.0 * tau) if since else 0.0
+                self._ramp[k, i] = smoothstep(tau) if since else 0.0
         self.tol, self.max_iter, self.n = float(tol), int(max_iter), n
 
         # constant geometry, from the model at its neutral configuration (every leg joint at 0)

@@ -25,6 +25,7 @@ from typing import Sequence
 import numpy as np
 
 from humanoid_sim.audit import SoleGeometry
+from humanoid_sim.trajectory.polynomials import smoothstep
 
 from .errors import GaitError, sample_time
 
@@ -60,7 +61,7 @@ class SupportInterval:
 def _transfer(tau: np.ndarray, transfer: str) -> np.ndarray:
     if transfer == "linear":
         return tau
-    return tau * tau * (3.0 - 2.0 * tau)
+    return smoothstep(tau)
 
 
 def sample(intervals: Sequence[SupportInterval], T: float, transfer: str = "smoothstep"

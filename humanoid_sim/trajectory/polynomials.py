@@ -56,3 +56,9 @@ def eval_quartic(h: tuple[float, ...], t: float) -> tuple[float, float, float]:
     return ((((h4 * t + h3) * t + h2) * t + h1) * t + h0,
             ((4.0 * h4 * t + 3.0 * h3) * t + 2.0 * h2) * t + h1,
             (12.0 * h4 * t + 6.0 * h3) * t + 2.0 * h2)
+
+
+def smoothstep(x):
+    """x^2 (3 - 2 x): 0 -> 1 over x in [0, 1] with zero slope at both ends (the transfers and ramps of the zmp gait
+    and its controller).  Not clamped: callers clamp x where it can leave [0, 1].  Scalar or array."""
+    return x * x * (3.0 - 2.0 * x)
