@@ -197,5 +197,8 @@ class Actuators:
 
     def saturate(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clip T to the saturation limits (errata section 7); returns (T_sat, mask of saturated rows)."""
+        inside = np.abs(T) <= self.limits          # False for NaN, as clip's NaN != NaN
+        if inside.all():                           # the usual case: nothing to clip
+            return T.copy(), ~inside
         Ts = np.clip(T, -self.limits, self.limits)
         return Ts, Ts != T

@@ -66,3 +66,20 @@ def test_thesis_torques_invert_the_map_and_read_the_shoulder_moment(hm):
         vi = int(hm.theta_v_idx[hm.theta_index(name)])
         assert abs(hm.theta_sign[hm.theta_index(name)] * tau[vi] - T[row]) < 1e-9
     assert joints == ["theta21", "theta23", "theta22", "theta24"]
+
+
+def test_saturate_is_a_clip_to_the_limits(hm):
+    """``saturate`` against numpy's clip: torques inside, on and beyond the limits, and NaN (flagged saturated, as
+    clip's NaN != NaN), with and without anything to clip (the method skips the clip when nothing binds)."""
+    act = Actuators(hm)
+    lim = act.limits
+    rng = np.random.default_rng(3)
+    inside = lim * rng.uniform(-0.99, 0.99, 26)
+    for T in (inside, lim * rng.uniform(-1.5, 1.5, 26), np.where(np.arange(26) == 4, np.nan, inside),
+              np.where(np.arange(26) == 7, -lim, inside)):
+        Ts, sat = act.saturate(T)
+        ref = np.clip(T, -lim, lim)
+        assert np.array_equal(Ts, ref, equal_nan=True)
+        assert np.array_equal(sat, ref != T)
+        assert Ts is not T
+    assert not act.saturate(inside)[1].any()

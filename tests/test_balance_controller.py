@@ -193,6 +193,7 @@ def test_the_unloading_weight_acts_on_the_trailing_toes_normal_force(hm, sc):
     ("friction_safety", 1.5, "BalanceSettings.friction_safety = 1.5: expected a finite number > 0 and <= 1"),
     ("cop_margin_ssp_m", float("nan"), "BalanceSettings.cop_margin_ssp_m = nan"),
     ("time_shift", 1, "BalanceSettings.time_shift = 1: expected true or false"),
+    ("lazy_torque_limits", "yes", "BalanceSettings.lazy_torque_limits = 'yes': expected true or false"),
 ])
 def test_bad_settings_are_named(field, value, message):
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
@@ -213,6 +214,37 @@ def test_references_are_read_on_the_plans_clock(hm, sc, state):
     off = BalanceController(BalanceSettings(time_shift=False))
     off.setup(ControlContext(hm, sc, sim.traj, sim.q0, sim.engine.name, sim.engine.constraints))
     assert np.array_equal(off(replace(obs, plan_delay=d)).tau, off(obs).tau)
+def _with(hm, sc, sim, **settings) -> BalanceController:
+    ctl = BalanceController(BalanceSettings(**settings))
+    ctl.setup(ControlContext(hm, sc, sim.traj, sim.q0, sim.engine.name, sim.engine.constraints))
+    return ctl
+
+
+def test_lazy_torque_limits_give_the_full_qps_optimum(hm, sc, state):
+    """The actuator-limit rows left out of the first solve (``lazy_torque_limits``) change nothing: without a
+    binding limit the command equals the one solved with every row from the start; with limits tightened until
+    one binds (torque_margin below the state's largest |T| / limit), the controller solves again with the rows and
+    again equals the full QP, with every bounded component at or inside its limit."""
+    sim, obs = state
+    eager, lazy = _with(hm, sc, sim, lazy_torque_limits=False), _with(hm, sc, sim)
+    ce, cl = eager(obs), lazy(obs)
+    assert (eager.torque_rows, lazy.torque_rows) == (1, 0)
+    # 1e-6 N m: the two QPs differ by rows that are inactive at the optimum; DAQP ends at its 1e-6 feasibility
+    # tolerance on rows scaled ~1..500, and the optima of the walk's QPs agree to ~1e-9 relative (torques ~100 N m)
+    np.testing.assert_allclose(cl.tau, ce.tau, rtol=0, atol=1e-6)
+    exact = lazy._exact
+    ratio = np.max(np.abs(cl.T_cmd[exact]) / lazy.act.limits[exact])
+    assert 0.2 < ratio < 0.98                             # well inside the default limits, so 0.9 ratio binds
+    eager, lazy = (_with(hm, sc, sim, lazy_torque_limits=flag, torque_margin=0.9 * ratio) for flag in (False, True))
+    ce, cl = eager(obs), lazy(obs)
+    assert (eager.torque_rows, lazy.torque_rows) == (1, 1)   # the first solve broke a limit: solved again
+    np.testing.assert_allclose(cl.tau, ce.tau, rtol=0, atol=1e-6)
+    bound = 0.9 * ratio * lazy.act.limits[exact]
+    # 1e-4 N m: DAQP's primal tolerance (1e-6) on rows T = P tau whose entries are ~1..100
+    assert np.all(np.abs(cl.T_cmd[exact]) <= bound + 1e-4)
+    assert np.max(np.abs(cl.T_cmd[exact]) - bound) > -1e-4   # and one of them sits on its bound
+
+
 def test_zmp_walk_is_feasible_on_welded_feet(hm, sc):
     """Issue #13's acceptance on sim 3 with only the gait lines added, judged by the contact audit."""
     sim = Simulator(hm, sc)
