@@ -58,7 +58,7 @@ class Simulator:
             elif scenario.gait.is_zmp and scenario.gait.controller == "balance":
                 from humanoid_sim.controllers.balance import BalanceController
 
-                controller = BalanceController()
+                controller = BalanceController(compiled=compiled is not False)   # --no-kernel: the reference
             else:
                 controller = ThesisController(compiled=compiled if engine in ("pinocchio", "mujoco") else False)
         self.controller = controller

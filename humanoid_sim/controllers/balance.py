@@ -70,6 +70,12 @@ Tasks, world frame (LOCAL_WORLD_ALIGNED), each a PD on the error plus the refere
 The references run on the plan's clock (``time_shift``): when a phase starts later than planned (a touchdown
 sensed late on real ground), every reference is read that much earlier, so the plan waits for the foot instead of
 moving the hip on and starting the next swing part-way along its path.
+Speed: one call is the references (Python, the trajectory's), Pinocchio's joint Jacobians with their time
+variation, M and h, one compiled call that does the rest up to the QP (placements, frame motions, the weld and lock
+rows, the task rows, the QP's matrices: ``kernel.compiled.balance_stage``, the twin of :meth:`_qp_reference`), DAQP,
+and a compiled call for tau and the thesis torques.  Measured on sim 1's zmp walk on welds: ~160 us a call, of
+which DAQP ~40 us; the reference path ~300 us.  ``tests/test_balance_compiled.py`` runs both on every call of walks
+on welds and on MuJoCo: the same commands to ~1e-9.
 Units: SI (m, rad, N, N m, s).
 """
 
@@ -81,9 +87,11 @@ from dataclasses import dataclass, fields
 import numpy as np
 import pinocchio as pin
 
+from humanoid_sim import kernel as _kernel
 from humanoid_sim.actuators import Actuators
 from humanoid_sim.audit import SoleGeometry
 from humanoid_sim.controllers.base import Command, ControlContext, ControllerError, Observation
+from humanoid_sim.kernel.compiled import balance_finish, balance_stage
 from humanoid_sim.phases import FOOT_SPECS, TOE_POINT_FRAME, Phase
 from humanoid_sim.trajectory.polynomials import smoothstep
 
@@ -152,12 +160,128 @@ def _pd(omega: float) -> tuple[float, float]:
     return omega * omega, 2.0 * omega
 
 
+@dataclass
+class _Targets:
+    """One call's references (:meth:`BalanceController._targets`): the plan's time t (s); the hip's (position,
+    velocity (6,), orientation, acceleration (6,)); a swing's (foot, toe point, velocity (6,), toe-body orientation,
+    feed-forward acceleration (6,), heel-return phase); double support's trailing heel (foot, lift angle, rad)."""
+
+    t: float
+    hip: tuple
+    swing: tuple | None = None
+    heel: tuple | None = None
+
+
+class _CompiledStage:
+    """The constant arguments of ``kernel.compiled.balance_stage`` / ``balance_finish`` for a set-up controller."""
+
+    def __init__(self, ctl: "BalanceController") -> None:
+        from humanoid_sim.kernel.stage import FRAMES, SupportKernel, actuator_tables
+        from humanoid_sim.kernel.tree import TreeConstants
+
+        hm, model, s = ctl.hm, ctl.model, ctl.settings
+        self.tree = tr = TreeConstants(model, FRAMES)
+        fi = tr.frame_index
+        nf, nj, nv = len(FRAMES), tr.parents.size, model.nv
+        self.R, self.p = np.empty((nj, 3, 3)), np.empty((nj, 3))
+        work = (self.R, self.p, np.empty((nf, 3, 3)), np.empty((nf, 3)), np.empty((nf, 6, nv + 1)), np.empty((nf, 6)))
+        self.tree_args = (tr.parents, tr.axis, tr.idx_q, tr.jR, tr.jp, tr.support, tr.fparent, tr.fR, tr.fp,
+                          np.asarray(hm.theta_v_idx, dtype=np.int64), np.asarray(hm.theta_sign, dtype=float),
+                          np.asarray(hm.theta_q_idx, dtype=np.int64), np.ascontiguousarray(ctl.theta0, dtype=float),
+                          np.ones(nf, dtype=np.bool_)) + work
+        self.support = SupportKernel(hm, tr)
+        self.kp, self.kd = float(ctl.dyn.gains.kp), float(ctl.dyn.gains.kd)
+        self.contacts = {}
+        for ph in Phase:
+            c = ph.contacts
+            jid = model.getJointId(c.locks[0])
+            split_toe = [fi[FOOT_SPECS[_FOOT_OF_MAIN[f]].toe_frame] if f in _FOOT_OF_MAIN else -1 for f in c.welds]
+            self.contacts[ph] = (np.array([fi[f] for f in c.welds], dtype=np.int64), int(model.idx_qs[jid]),
+                                 int(model.idx_vs[jid]), np.array(split_toe, dtype=np.int64))
+        self.swing_frames = {f: np.array([fi[TOE_POINT_FRAME[f]], fi[FOOT_SPECS[f].toe_frame],
+                                          fi[FOOT_SPECS[f].main_frame]], dtype=np.int64) for f in ("R", "L")}
+        self.heel_frames = {f: np.array([fi[FOOT_SPECS[f].toe_frame], fi[FOOT_SPECS[f].main_frame], 0],
+                                        dtype=np.int64) for f in ("R", "L")}
+        self.no_frames = np.zeros(3, dtype=np.int64)
+        self.gains = np.array([*_pd(s.hip_omega), s.w_hip, *_pd(s.trunk_omega), s.w_trunk, *_pd(s.swing_omega),
+                               s.w_swing, *_pd(s.posture_omega)], dtype=float)
+        self.act_tables = actuator_tables(model, ctl.act)
+        self.frame_buffers = (work[2], work[3], work[5])      # fR, fpos, vel as balance_stage leaves them
+
+
+def qp_numpy(A: np.ndarray, w: np.ndarray, b: np.ndarray, M_upper: np.ndarray, h: np.ndarray, J: np.ndarray,
+             rhs_shift: np.ndarray, nw: int, box_kind: np.ndarray, split_weld: np.ndarray, split_lock: np.ndarray,
+             X: np.ndarray, jt: np.ndarray, heel: np.ndarray, toe: np.ndarray, full: np.ndarray, w_acc: float,
+             w_force: float, w_torque: float, unload: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The controller's QP from its task rows and the phase's constraint rows, in NumPy: the reference of the
+    compiled ``humanoid_sim.kernel.compiled.balance_qp`` (arguments and results there; x = [a (nv); lam (m); W_t (6
+    per flat foot)]).  Cost: the weighted task rows, w_acc |a|^2 + w_force |(lam, W_t)|^2, the torques w_torque
+    |tau[6:]|^2 (tau[6:] = Tx x + h[6:]: in double support the feet can squeeze or twist each other through the
+    ground without changing the motion; the smallest torques pick the split) and ``unload`` on each weld's normal
+    force.  Equalities: the base rows of M a + h - J^T lam = 0 (no actuator there); no lock multiplier but the toe
+    box's share lam_lock = j_toe . W_t (the toe motor holds the rest); J a = -gamma.  Inequalities Cin x >= 0, 11 rows
+    a box: a flat foot's heel box carries W_m = lam_weld - X W_t (main-body frame), its toe box W_t (toe-body frame);
+    a foot held by its toe alone, lam_weld on its toe box."""
+    nv, m, ns = M_upper.shape[0], J.shape[0], len(split_weld)
+    n = nv + m + 6 * ns
+    M = M_upper.copy()                       # crba fills the upper triangle: mirror it
+    lower = np.tril_indices(nv, -1)
+    M[lower] = M.T[lower]
+    G = np.zeros((n, n))
+    WA = A * w[:, None]
+    G[:nv, :nv] = A.T @ WA
+    g = np.zeros(n)
+    g[:nv] = WA.T @ b
+    Tx = np.zeros((nv - 6, n))
+    Tx[:, :nv] = M[6:]
+    Tx[:, nv:nv + m] = -J[:, 6:].T
+    G += w_torque * (Tx.T @ Tx)
+    g -= w_torque * (Tx.T @ h[6:])
+    G[np.diag_indices(n)] += np.concatenate([np.full(nv, w_acc), np.full(n - nv, w_force)])
+    for i, extra in enumerate(unload):
+        G[nv + 6 * i + 2, nv + 6 * i + 2] += extra
+    n_lock = m - nw
+    Ceq = np.zeros((6 + n_lock + m, n))
+    beq = np.zeros(6 + n_lock + m)
+    Ceq[:6, :nv] = M[:6]
+    Ceq[:6, nv:nv + m] = -J[:, :6].T
+    beq[:6] = -h[:6]
+    Ceq[6 + np.arange(n_lock), nv + nw + np.arange(n_lock)] = 1.0
+    for j in range(ns):
+        Ceq[6 + split_lock[j] - nw, nv + m + 6 * j:nv + m + 6 * j + 6] = -jt[j]
+    Ceq[6 + n_lock:, :nv] = J
+    beq[6 + n_lock:] = -rhs_shift
+    blocks, cop = [], []
+    for i, kind in enumerate(box_kind):
+        cw = slice(nv + 6 * i, nv + 6 * i + 6)
+        if kind == 0:
+            j = int(np.flatnonzero(split_weld == i)[0])
+            ct = slice(nv + m + 6 * j, nv + m + 6 * j + 6)
+            bh = np.zeros((len(heel), n))
+            bh[:, cw] = heel
+            bh[:, ct] = -heel @ X[j]
+            bt = np.zeros((len(toe), n))
+            bt[:, ct] = toe
+            blocks += [bh, bt]
+            cop += ([False] * 7 + [True] * 4) * 2
+        else:
+            blk = np.zeros((len(heel), n))
+            blk[:, cw] = toe if kind == 1 else full
+            blocks.append(blk)
+            cop += [False] * 7 + [True] * 4
+    return G, g, Ceq, beq, np.vstack(blocks), np.array(cop, dtype=bool), M, Tx
+
+
 class BalanceController:
     """See the module docstring.  ``settings``: :class:`BalanceSettings` (None = defaults)."""
 
     name = "balance"
 
-    def __init__(self, settings: BalanceSettings | None = None) -> None:
+    def __init__(self, settings: BalanceSettings | None = None, compiled: bool = True) -> None:
+        """``compiled``: when numba is installed, build the QP and read its solution in two compiled calls
+        (``kernel.compiled.balance_stage`` / ``balance_finish``); else, or False, the NumPy / Pinocchio reference
+        (:meth:`_qp_reference`, :func:`qp_numpy`): the same command to round-off."""
+        self.compiled = bool(compiled)
         if settings is not None and not isinstance(settings, BalanceSettings):
             raise ValueError(f"settings: expected a BalanceSettings or None, got {type(settings).__name__}")
         self.settings = settings or BalanceSettings()
@@ -206,11 +330,13 @@ class BalanceController:
         self._lift_k, self._lift0 = -1, 0.0     # the swing (its phase index) and its heel lift at lift-off, rad
         self._box_cache: dict[tuple, np.ndarray] = {}
         self._task_buffers: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self._cop_pattern: dict[int, np.ndarray] = {}
         # the components linear in tau (revolute and spherical joints; the shoulders' are not) and their bounds
         self._exact = self.act.component_map(ctx.q0)[1]
         self._exact_limits = self.act.limits[self._exact] * s.torque_margin
-        self._lower = np.tril_indices(nv, -1)
+        self._box_kinds: dict[Phase, np.ndarray] = {}
+        self._stage = _CompiledStage(self) if self.compiled and _kernel.AVAILABLE else None
+        self._kin_data = self.model.createData()
+        self._tgt = np.zeros(51)
 
     def _reference_time(self, obs: Observation) -> float:
         """The time at which the references are read, s: the plan's clock ``obs.t - obs.plan_delay`` (``time_shift``
@@ -230,47 +356,86 @@ class BalanceController:
     def __call__(self, obs: Observation) -> Command:
         self.calls += 1
         k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
-        t = self._reference_time(obs)   # the plan's clock: it waits for a late touchdown
         s = self.settings
-        model, d = self.model, self.dyn.data
-        rows = self.dyn.prepare(phase.contacts, obs.anchors, q, v)   # kinematics, Jacobians, M (upper), nle
-        pin.updateFramePlacements(model, d)
-        nv, m = self.nv, rows.m
-        M = d.M.copy()                       # crba fills the upper triangle: mirror it
-        M[self._lower] = M.T[self._lower]
-        h = d.nle.copy()
+        tg = self._targets(obs)
+        # each flat foot (main body welded, toe locked) carries two ground wrenches, on its heel box and on its toe
+        # box (see the module docstring); the box rows and weights of this phase
+        welds = phase.contacts.welds
+        kinds = self._box_kinds.get(phase)
+        if kinds is None:
+            locks = phase.contacts.locks
+            kinds = self._box_kinds[phase] = np.array(
+                [0 if f in _FOOT_OF_MAIN and FOOT_SPECS[_FOOT_OF_MAIN[f]].toe_joint in locks else
+                 1 if f in _TOE_FRAMES else 2 for f in welds], dtype=np.int64)
+        unload = np.zeros(len(welds))   # double support: the trailing toe's normal force weighted w_unload u^2
+        if phase.is_double_support and s.w_unload > 0.0:
+            info = self.traj.phases[k]
+            u = min(1.0, max(0.0, (tg.t - info.t_start) / info.duration))
+            for i, frame in enumerate(welds):
+                if frame in _TOE_FRAMES:
+                    unload[i] = s.w_unload * u * u
+        sole = self.sole
+        jx, _, jz = sole.toe_joint
+        margin = s.cop_margin_dsp_m if phase.is_double_support else s.cop_margin_ssp_m
+        boxes = (self._box_rows(sole.heel_back_x, jx, sole.sole_z, margin),
+                 self._box_rows(0.0, sole.toe_front_x - jx, sole.sole_z - jz, margin),
+                 self._box_rows(sole.heel_back_x, sole.toe_front_x, sole.sole_z, margin))
+        build = self._qp_compiled if self._stage is not None else self._qp_reference
+        G, g, Ceq, beq, Cin, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, boxes, unload)
+        nv, m = self.nv, Jc.shape[0]
+        bin_ = np.zeros(len(cop_rows))
 
-        A, b, w = self._task_rows(k, phase)                    # task Jacobians (rows x nv), targets, weights
-        r = [0]                                                # the next free row of A, b, w
+        # actuator limits |T| <= limit for the components linear in tau (T = P tau, tau = Tx x + h).  They rarely
+        # bind (only the toes' 30 N m, in 0-14 of the ~1600-3200 calls of each shipped zmp walk on welds), so by
+        # default the QP is first solved without them; its optimum is the full QP's whenever it satisfies them (a
+        # relaxation's optimum that is feasible for the full problem is optimal for it), else the QP is solved again
+        # with them.  44 fewer rows: DAQP's set-up (a factorisation over every row) drops from ~40 to ~30 us, and
+        # the component map is not needed
+        x = None
+        if s.lazy_torque_limits:
+            x, level = self._solve(G, g, Ceq, beq, Cin, bin_, cop_rows)
+            a, lam, tau, T_cmd = self._finish(x, M, h, Jc, q, v, kin)
+            if np.any(np.abs(T_cmd[self._exact]) > self._exact_limits):
+                x = None
+        if x is None:
+            self.torque_rows += 1
+            P, _ = self.act.component_map(q, kin[0])
+            P, lim = P[self._exact], self._exact_limits
+            PT = P[:, 6:] @ Tx
+            Ph = P[:, 6:] @ h[6:]
+            x, level = self._solve(G, g, Ceq, beq, np.vstack([Cin, -PT, PT]),
+                                   np.concatenate([bin_, Ph - lim, -Ph - lim]),
+                                   np.concatenate([cop_rows, np.zeros(2 * len(lim), dtype=bool)]))
+            a, lam, tau, T_cmd = self._finish(x, M, h, Jc, q, v, kin)
+        T_sat, sat = self.act.saturate(T_cmd)
+        extra = {"balance_level": level, "box_wrenches": {}}
+        j = 0
+        for i, kind in enumerate(kinds):
+            if kind == 0:
+                Wt = x[nv + m + 6 * j:nv + m + 6 * j + 6].copy()
+                extra["box_wrenches"][welds[i]] = (lam[6 * i:6 * i + 6] - X[j] @ Wt, Wt)
+                j += 1
+        if sat.any():
+            B = self.act.torque_map(q, kin[0])
+            tau = tau + B @ (T_sat - T_cmd)
+            tau[:6] = 0.0
+            return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, extra=extra)
+        if self._log is not None:
+            # what the weld engine logs at a stage (``stage.StageOutput`` layout): the compiled path does not leave
+            # the engine's shared Pinocchio data at this state, as the reference path's prepare does
+            extra["kernel_log"] = self._log
+        return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=self._Jpost @ a,
+                       motion=(a, lam), motion_model=self.weld, extra=extra)
 
-
-        def task(J: np.ndarray, acc_des: np.ndarray, drift: np.ndarray, wt: float) -> None:
-            i = r[0]
-            j = i + J.shape[0]
-            A[i:j] = J
-            b[i:j] = acc_des - drift
-            w[i:j] = wt
-            r[0] = j
-
-        # Body-17 CoM
+    def _targets(self, obs: Observation) -> "_Targets":
+        """The references of this call on the plan's clock (they depend on time only, not on the state): the hip's,
+        and the swing foot's (its feed-forward ramped in, the landing depth and search on real ground) or the
+        trailing heel's lift in double support."""
+        s = self.settings
+        k, phase = obs.k, obs.phase
+        t = self._reference_time(obs)   # the plan's clock: it waits for a late touchdown
         p_ref, v6_ref, R_ref = self.traj.hip_reference(k, t)
-        a6_ref = self.traj.hip_acceleration(k, t)
-        f = self.fid["Pc_17"]
-        Jp = pin.getFrameJacobian(model, d, f, LWA)
-        p = d.oMf[f].translation
-        vel = pin.getFrameVelocity(model, d, f, LWA)
-        acc0 = pin.getFrameClassicalAcceleration(model, d, f, LWA)
-        kp, kd = _pd(s.hip_omega)
-        task(Jp[:3], a6_ref[:3] + kp * (p_ref - p) + kd * (v6_ref[:3] - vel.linear), acc0.linear, s.w_hip)
-        # Body-17 orientation
-        f = self.fid["O_17"]
-        Jo = pin.getFrameJacobian(model, d, f, LWA)
-        R = d.oMf[f].rotation
-        w_now = pin.getFrameVelocity(model, d, f, LWA).angular
-        alpha0 = pin.getFrameAcceleration(model, d, f, LWA).angular
-        kp, kd = _pd(s.trunk_omega)
-        task(Jo[3:], a6_ref[3:] + kp * pin.log3(R_ref @ R.T) + kd * (v6_ref[3:] - w_now), alpha0, s.w_trunk)
-        # swing foot
+        tg = _Targets(t=t, hip=(p_ref, v6_ref, R_ref, self.traj.hip_acceleration(k, t)))
         info = self.traj.phases[k]
         if info.swing_foot is not None:
             foot = info.swing_foot
@@ -299,26 +464,68 @@ class BalanceController:
                 v6 = v6.copy()
                 v6[2] -= s.landing_search_mps
                 a_ff = np.zeros(6)
+            tg.swing = (foot, pt, v6, Rr, a_ff, (t - info.t_start) / s.heel_return_time_s)
+        elif phase.is_double_support:
+            # the trailing foot, held by its toe: lift its heel (toe-off) so that only the toe part touches, as the
+            # contact model (toe weld) assumes; on real ground a flat trailing foot would carry load on its heel
+            x = min(1.0, (t - info.t_start) / min(info.duration, s.heel_lift_time_s))
+            tg.heel = ("R" if phase.support_foot == "L" else "L", s.heel_lift_rad * x * x * (3.0 - 2.0 * x))
+        return tg
+
+    def _qp_reference(self, obs: Observation, tg: "_Targets", kinds: np.ndarray, boxes: tuple,
+                      unload: np.ndarray) -> tuple:
+        """The QP with Pinocchio's frame quantities and :func:`qp_numpy` (the reference of :meth:`_qp_compiled`).
+        Returns :func:`qp_numpy`'s outputs, the constraint rows, X per flat foot, h and the Data holding the
+        kinematics."""
+        s = self.settings
+        k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
+        model, d = self.model, self.dyn.data
+        rows = self.dyn.prepare(phase.contacts, obs.anchors, q, v)   # kinematics, Jacobians, M (upper), nle
+        pin.updateFramePlacements(model, d)
+        A, b, w = self._task_rows(k, phase)                    # task Jacobians (rows x nv), targets, weights
+        r = [0]                                                # the next free row of A, b, w
+
+        def task(J: np.ndarray, acc_des: np.ndarray, drift: np.ndarray, wt: float) -> None:
+            i = r[0]
+            j = i + J.shape[0]
+            A[i:j] = J
+            b[i:j] = acc_des - drift
+            w[i:j] = wt
+            r[0] = j
+
+        # Body-17 CoM and orientation
+        p_ref, v6_ref, R_ref, a6_ref = tg.hip
+        f = self.fid["Pc_17"]
+        kp, kd = _pd(s.hip_omega)
+        task(pin.getFrameJacobian(model, d, f, LWA)[:3],
+             a6_ref[:3] + kp * (p_ref - d.oMf[f].translation)
+             + kd * (v6_ref[:3] - pin.getFrameVelocity(model, d, f, LWA).linear),
+             pin.getFrameClassicalAcceleration(model, d, f, LWA).linear, s.w_hip)
+        f = self.fid["O_17"]
+        kp, kd = _pd(s.trunk_omega)
+        task(pin.getFrameJacobian(model, d, f, LWA)[3:],
+             a6_ref[3:] + kp * pin.log3(R_ref @ d.oMf[f].rotation.T)
+             + kd * (v6_ref[3:] - pin.getFrameVelocity(model, d, f, LWA).angular),
+             pin.getFrameAcceleration(model, d, f, LWA).angular, s.w_trunk)
+        kp, kd = _pd(s.swing_omega)
+        if tg.swing is not None:
+            foot, pt, v6, Rr, a_ff, xr = tg.swing
             fpt = self.fid[TOE_POINT_FRAME[foot]]
             ftoe = self.fid[FOOT_SPECS[foot].toe_frame]
-            kp, kd = _pd(s.swing_omega)
-            Jpt = pin.getFrameJacobian(model, d, fpt, LWA)
-            vpt = pin.getFrameVelocity(model, d, fpt, LWA).linear
-            task(Jpt[:3], a_ff[:3] + kp * (pt - d.oMf[fpt].translation) + kd * (v6[:3] - vpt),
+            task(pin.getFrameJacobian(model, d, fpt, LWA)[:3],
+                 a_ff[:3] + kp * (pt - d.oMf[fpt].translation)
+                 + kd * (v6[:3] - pin.getFrameVelocity(model, d, fpt, LWA).linear),
                  pin.getFrameClassicalAcceleration(model, d, fpt, LWA).linear, s.w_swing)
-            Jt = pin.getFrameJacobian(model, d, ftoe, LWA)
-            wt = pin.getFrameVelocity(model, d, ftoe, LWA).angular
-            task(Jt[3:], a_ff[3:] + kp * pin.log3(Rr @ d.oMf[ftoe].rotation.T) + kd * (v6[3:] - wt),
+            task(pin.getFrameJacobian(model, d, ftoe, LWA)[3:],
+                 a_ff[3:] + kp * pin.log3(Rr @ d.oMf[ftoe].rotation.T)
+                 + kd * (v6[3:] - pin.getFrameVelocity(model, d, ftoe, LWA).angular),
                  pin.getFrameAcceleration(model, d, ftoe, LWA).angular, s.w_swing)
             # the swing foot's main body at the same orientation: a flat foot (toe joint straight) lands flat.  It
             # left the ground with its heel lifted (the double support's toe-off): the reference starts there and
             # returns to flat over heel_return_time_s (a step back to flat would kick the stance foot: on real
             # ground it rocked by 2-2.5 deg at every lift-off)
             fmain = self.fid[FOOT_SPECS[foot].main_frame]
-            Jm = pin.getFrameJacobian(model, d, fmain, LWA)
-            wm = pin.getFrameVelocity(model, d, fmain, LWA).angular
             Rm, wm_ref, am_ff = Rr, v6[3:], a_ff[3:]
-            xr = (t - info.t_start) / s.heel_return_time_s
             if self._lift_k != k:
                 # the heel lift the foot left the ground with (main body pitched about the toe body's y axis).  On
                 # welds the toe-off reaches heel_lift_rad; on real ground the loaded heel box holds it back (sim 1:
@@ -335,116 +542,90 @@ class BalanceController:
                 axis = Rr[:, 1]                       # the toe body's pitch axis, world
                 wm_ref = v6[3:] + dang * axis
                 am_ff = a_ff[3:] + ddang * axis
-            task(Jm[3:], am_ff + kp * pin.log3(Rm @ d.oMf[fmain].rotation.T) + kd * (wm_ref - wm),
+            task(pin.getFrameJacobian(model, d, fmain, LWA)[3:],
+                 am_ff + kp * pin.log3(Rm @ d.oMf[fmain].rotation.T)
+                 + kd * (wm_ref - pin.getFrameVelocity(model, d, fmain, LWA).angular),
                  pin.getFrameAcceleration(model, d, fmain, LWA).angular, s.w_swing)
-        elif phase.is_double_support:
-            # the trailing foot, held by its toe: lift its heel (toe-off) so that only the toe part touches, as the
-            # contact model (toe weld) assumes; on real ground a flat trailing foot would carry load on its heel
-            foot = "R" if phase.support_foot == "L" else "L"
+        elif tg.heel is not None:
+            foot, ang = tg.heel
             ftoe, fmain = self.fid[FOOT_SPECS[foot].toe_frame], self.fid[FOOT_SPECS[foot].main_frame]
-            x = min(1.0, (t - info.t_start) / min(info.duration, s.heel_lift_time_s))
-            ang = s.heel_lift_rad * x * x * (3.0 - 2.0 * x)   # as written (a smoothstep): rounding kept
             R_ref = d.oMf[ftoe].rotation @ _rot_y(ang)
-            Jm = pin.getFrameJacobian(model, d, fmain, LWA)
-            wm = pin.getFrameVelocity(model, d, fmain, LWA).angular
-            kp, kd = _pd(s.swing_omega)
-            task(Jm[3:], kp * pin.log3(R_ref @ d.oMf[fmain].rotation.T) - kd * wm,
+            task(pin.getFrameJacobian(model, d, fmain, LWA)[3:],
+                 kp * pin.log3(R_ref @ d.oMf[fmain].rotation.T)
+                 - kd * pin.getFrameVelocity(model, d, fmain, LWA).angular,
                  pin.getFrameAcceleration(model, d, fmain, LWA).angular, s.w_swing)
         # posture (thesis joint angles toward the initial ones)
-        th = self.hm.theta_from_q(q)
-        Jpost = self._Jpost
-        thd = Jpost @ v
         kp, kd = _pd(s.posture_omega)
         i = r[0]
-        A[i:] = Jpost
-        b[i:] = kp * (self.theta0 - th) - kd * thd
+        A[i:] = self._Jpost
+        b[i:] = kp * (self.theta0 - self.hm.theta_from_q(q)) - kd * (self._Jpost @ v)
         w[i:] = self._w_joint
-        # each flat foot (main body welded, toe locked) carries two ground wrenches, on its heel box and on its toe
-        # box: the toe box's W_t (toe-body frame, 6 more variables) reaches the weld as X W_t and the toe lock as
-        # j . W_t, so the toe's motor is asked to hold what the ground pushes under the toe
         splits = self._splits(rows, model, d)
-        n = nv + m + 6 * len(splits)
-        G = np.zeros((n, n))
-        WA = A * w[:, None]
-        G[:nv, :nv] = A.T @ WA
-        diag = G.reshape(-1)[::n + 1]          # a view of G's diagonal
-        diag[:nv] += s.w_acc
-        diag[nv:] += s.w_force
-        g = np.zeros(n)
-        g[:nv] = WA.T @ b
-        # joint torques tau = M a + h - J^T lam (joint rows): in double support the feet can squeeze or twist each
-        # other through the ground without changing the motion; the smallest torques pick the split
-        J = rows.J
-        # every joint (rows 6: of tau), the locked toe too: its motor holds the lock (see the docstring)
-        Tx = np.empty((nv - 6, n))             # tau[6:] = Tx x + h[6:] (the toe-box wrenches do not enter)
-        Tx[:, :nv] = M[6:]
-        Tx[:, nv:nv + m] = -J[:, 6:].T
-        Tx[:, nv + m:] = 0.0
-        k_ = nv + m
-        G[:k_, :k_] += s.w_torque * (Tx[:, :k_].T @ Tx[:, :k_])
-        g -= s.w_torque * (Tx.T @ h[6:])
-        if phase.is_double_support and s.w_unload > 0.0:
-            u = min(1.0, max(0.0, (t - info.t_start) / info.duration))
-            for i, frame in enumerate(rows.contacts.welds):
-                if frame in _TOE_FRAMES:
-                    G[nv + 6 * i + 2, nv + 6 * i + 2] += s.w_unload * u * u
+        ns = len(splits)
+        X = np.array([sp[2] for sp in splits]).reshape(ns, 6, 6)
+        h = d.nle.copy()
+        out = qp_numpy(A, w, b, d.M, h, rows.J, rows.rhs_shift, rows.n_weld_rows, kinds,
+                       np.array([sp[0] for sp in splits], dtype=np.int64),
+                       np.array([sp[1] for sp in splits], dtype=np.int64), X,
+                       np.array([sp[3] for sp in splits]).reshape(ns, 6), *boxes, s.w_acc, s.w_force, s.w_torque,
+                       unload)
+        return out + (rows.J, X, h, (d, None, 0.0, 0.0))
 
-        # equalities: the base rows of M a + h - J^T lam = 0; no lock multiplier (the toe motor holds it); J a = -gamma
-        nw = rows.n_weld_rows
-        n_lock = m - nw
-        Ceq = np.zeros((6 + n_lock + m, n))
-        beq = np.zeros(6 + n_lock + m)
-        Ceq[:6, :nv] = M[:6]
-        Ceq[:6, nv:nv + m] = -J[:, :6].T
-        beq[:6] = -h[:6]
-        Ceq[6 + np.arange(n_lock), nv + nw + np.arange(n_lock)] = 1.0
-        for j, (_, lock_row, _, jt) in enumerate(splits):     # lam_lock = j_toe . W_t (zero without a split)
-            Ceq[6 + lock_row - nw, nv + m + 6 * j:nv + m + 6 * j + 6] = -jt
-        Ceq[6 + n_lock:, :nv] = J
-        beq[6 + n_lock:] = -rows.rhs_shift
+    def _qp_compiled(self, obs: Observation, tg: "_Targets", kinds: np.ndarray, boxes: tuple,
+                     unload: np.ndarray) -> tuple:
+        """:meth:`_qp_reference` in one compiled call (``kernel.compiled.balance_stage``): Pinocchio computes the
+        joint Jacobians and their time variation, M and h; the kernel the placements, frame motions, constraint
+        rows, task rows and the QP."""
+        s = self.settings
+        k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
+        model, d = self.model, self._kin_data
+        pin.computeJointJacobiansTimeVariation(model, d, q, v)
+        pin.crba(model, d, q)
+        pin.nonLinearEffects(model, d, q, v)
+        h = d.nle.copy()
+        st = self._stage
+        fidx = st.tree.frame_index
+        p_ref, v6_ref, R_ref, a6_ref = tg.hip
+        tgt = self._tgt
+        tgt[0:3], tgt[3:9], tgt[9:18], tgt[18:24] = p_ref, v6_ref, R_ref.ravel(), a6_ref
+        if tg.swing is not None:
+            foot, pt, v6, Rr, a_ff, xr = tg.swing
+            mode = 1
+            fi = st.swing_frames[foot]
+            tgt[24:27], tgt[27:33], tgt[33:42], tgt[42:48] = pt, v6, Rr.ravel(), a_ff
+            tgt[48], tgt[49] = xr, s.heel_return_time_s
+            tgt[50] = self._lift0 if self._lift_k == k else -1.0
+        elif tg.heel is not None:
+            foot, ang = tg.heel
+            mode = 2
+            fi = st.heel_frames[foot]
+            tgt[24] = ang
+        else:
+            mode, fi = 0, st.no_frames
+        aR, ap, alock = st.support.anchor(phase, obs.anchors)
+        welds, lock_q, lock_v, split_toe = st.contacts[phase]
+        G, g, Ceq, beq, Cin, cop, M, Tx, Jc, X, lift0, pos_err, ori_err = balance_stage(
+            q, v, d.J, d.dJ, d.M, h, *st.tree_args, welds, aR, ap, lock_q, lock_v, alock, st.kp, st.kd, mode, fi, tgt,
+            st.gains, self._w_joint, s.heel_lift_rad, kinds, split_toe, *boxes, s.w_acc, s.w_force, s.w_torque,
+            unload)
+        if mode == 1:
+            self._lift_k, self._lift0 = k, lift0
+        return G, g, Ceq, beq, Cin, cop, M, Tx, Jc, X, h, (d, st, pos_err, ori_err)
 
-        Cin, bin_, cop_rows = self._contact_inequalities(rows, phase, n, nv, splits, m)
-        frames = self.act.joint_frames(q, d)       # shared by the thesis torques and the component map below
-
-        def solve(Cin: np.ndarray, bin_: np.ndarray, cop_rows: np.ndarray) -> tuple:
-            x, level = self._solve(G, g, Ceq, beq, Cin, bin_, cop_rows)
-            a, lam = x[:nv], x[nv:nv + m]
-            tau = M @ a + h - J.T @ lam
-            tau[:6] = 0.0
-            return x, level, a, lam, tau, self.act.thesis_torques(q, v, a, tau, frames=frames)
-
-        # actuator limits |T| <= limit for the components linear in tau (T = P tau, tau = Tx x + h).  They rarely
-        # bind (only the toes' 30 N m, in 0-14 of the ~1600-3200 calls of each shipped zmp walk on welds), so by
-        # default the QP is first solved without them;
-        # its optimum is the full QP's whenever it satisfies them (a relaxation's optimum that is feasible for the
-        # full problem is optimal for it), else the QP is solved again with them.  44 fewer rows: DAQP's set-up
-        # (a factorisation over every row) drops from ~40 to ~30 us, and the component map is not needed
-        x = None
-        if s.lazy_torque_limits:
-            x, level, a, lam, tau, T_cmd = solve(Cin, bin_, cop_rows)
-            if np.any(np.abs(T_cmd[self._exact]) > self._exact_limits):
-                x = None
-        if x is None:
-            self.torque_rows += 1
-            P, _ = self.act.component_map(q, frames=frames)
-            P, lim = P[self._exact], self._exact_limits
-            PT = P[:, 6:] @ Tx
-            Ph = P[:, 6:] @ h[6:]
-            x, level, a, lam, tau, T_cmd = solve(
-                np.vstack([Cin, -PT, PT]), np.concatenate([bin_, Ph - lim, -Ph - lim]),
-                np.concatenate([cop_rows, np.zeros(2 * len(lim), dtype=bool)]))
-        T_sat, sat = self.act.saturate(T_cmd)
-        extra = {"balance_level": level, "box_wrenches": {
-            rows.contacts.welds[i]: (lam[6 * i:6 * i + 6] - X @ x[nv + m + 6 * j:nv + m + 6 * j + 6],
-                                     x[nv + m + 6 * j:nv + m + 6 * j + 6].copy())
-            for j, (i, _, X, _) in enumerate(splits)}}
-        if sat.any():
-            B = self.act.torque_map(q, d)
-            tau = tau + B @ (T_sat - T_cmd)
-            tau[:6] = 0.0
-            return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, extra=extra)
-        return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=Jpost @ a, motion=(a, lam),
-                       motion_model=self.weld, extra=extra)
+    def _finish(self, x: np.ndarray, M: np.ndarray, h: np.ndarray, Jc: np.ndarray, q: np.ndarray, v: np.ndarray,
+                kin: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(a, lam, tau, T_cmd) of a QP solution: tau = M a + h - Jc^T lam (base rows zero) and its thesis torques."""
+        d, st, pos_err, ori_err = kin
+        if st is not None:
+            a, lam, tau, T, self._log = balance_finish(x, M, h, Jc, d.J, d.dJ, v, st.R, st.p, st.tree.support,
+                                                       *st.act_tables, pos_err, ori_err, *st.frame_buffers)
+            return a, lam, tau, T
+        nv, m = self.nv, Jc.shape[0]
+        a, lam = x[:nv], x[nv:nv + m]
+        tau = M @ a + h - Jc.T @ lam
+        tau[:6] = 0.0
+        self._log = None
+        return a, lam, tau, self.act.thesis_torques(q, v, a, tau, kin_data=d)
 
     def _task_rows(self, k: int, phase: Phase) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Work buffers (A (rows x nv), b (rows,), w (rows,)) for one call's tasks, every row written by the call:
@@ -506,40 +687,6 @@ class BalanceController:
         ], dtype=float)
         rows.flags.writeable = False           # cached (the sole and the margins are fixed): read-only
         return rows
-
-    def _contact_inequalities(self, rows, phase: Phase, n: int, nv: int, splits, m: int
-                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """C x >= 0 rows for every foot box in contact (see the module docstring); ``cop`` marks the CoP rows.  A
-        flat foot's heel box carries W_m = lam_weld - X W_t (main-body frame), its toe box W_t (toe-body frame); a
-        foot held by its toe alone, lam_weld on its toe box."""
-        sole = self.sole
-        jx, _, jz = sole.toe_joint
-        margin = self.settings.cop_margin_dsp_m if phase.is_double_support else self.settings.cop_margin_ssp_m
-        heel = self._box_rows(sole.heel_back_x, jx, sole.sole_z, margin)
-        toe = self._box_rows(0.0, sole.toe_front_x - jx, sole.sole_z - jz, margin)
-        split_of = {i: (j, X) for j, (i, _, X, _) in enumerate(splits)}
-        welds = rows.contacts.welds
-        n_box = len(welds) + len(splits)                 # a split foot has two boxes, any other weld one
-        nb = len(heel)                                   # 11 rows a box: 7 force rows, then 4 CoP rows
-        C = np.zeros((nb * n_box, n))
-        r = 0
-        for i, frame in enumerate(welds):
-            cw = slice(nv + 6 * i, nv + 6 * i + 6)
-            if i in split_of:
-                j, X = split_of[i]
-                ct = slice(nv + m + 6 * j, nv + m + 6 * j + 6)
-                C[r:r + nb, cw] = heel
-                C[r:r + nb, ct] = -heel @ X
-                C[r + nb:r + 2 * nb, ct] = toe
-                r += 2 * nb
-            else:
-                C[r:r + nb, cw] = toe if frame in _TOE_FRAMES else self._box_rows(
-                    sole.heel_back_x, sole.toe_front_x, sole.sole_z, margin)
-                r += nb
-        cop = self._cop_pattern.get(n_box)
-        if cop is None:
-            cop = self._cop_pattern[n_box] = np.tile(np.arange(nb) >= 7, n_box)
-        return C, np.zeros(nb * n_box), cop
 
     def _solve(self, G, g, Ceq, beq, Cin, bin_, cop_rows) -> tuple[np.ndarray, int]:
         """min 1/2 x^T G x - g^T x  s.t.  Ceq x = beq, Cin x >= bin_ (DAQP: a dual active-set method for small

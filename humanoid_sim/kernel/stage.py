@@ -38,7 +38,7 @@ from humanoid_sim.phases import FOOT_SPECS, Phase
 FRAMES = list(TASK_FRAMES)
 """Frames the kernel evaluates: the controller's task frames (Pc_17, O_17, P_tpR, P_tpL, O_1, O_2, O_3, O_4), in
 the row order of ``compiled.F_PC17 ... F_O4``."""
-__all__ = ["FRAMES", "LOG_SIZE", "StageKernel", "StageOutput", "SupportKernel"]
+__all__ = ["FRAMES", "LOG_SIZE", "StageKernel", "StageOutput", "SupportKernel", "actuator_tables"]
 
 
 # ----------------------------------------------------------------------------------------------- Python side
@@ -150,6 +150,36 @@ class SupportKernel:
 
 
 
+def actuator_tables(model: pin.Model, act: Actuators) -> tuple[np.ndarray, ...]:
+    """The actuator groups of ``act`` (``Actuators._groups``) as the flat tables ``compiled._thesis_torques`` reads:
+    g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity (see there)."""
+    g1, g3, gs = [], [], []
+    hj = np.array(act._hj_unique, dtype=np.int64)
+    for gi, (rows, comps, hjid, sl, tj, higher_is_parent) in enumerate(act._groups):
+        slot = act._hj_unique.index(hjid)
+        vidx = act._vidx[sl]
+        sg = act._signs[sl].astype(np.int64)
+        if len(rows) == 1:
+            g1.append([rows[0], vidx[0], sg[0], slot, comps[0]])
+        elif len(rows) == 3:
+            if list(comps) != [0, 1, 2]:
+                raise ValueError(f"actuator group {gi}: three components must be x, y, z")
+            g3.append(list(rows) + list(vidx) + list(sg) + [slot])
+        else:
+            if higher_is_parent:
+                raise ValueError(f"actuator group {gi}: the two-component (universal) joint must carry a "
+                                 "leaf body on its child side")
+            gs.append(list(rows) + list(comps) + [tj, slot])
+    for g in gs:
+        if any(model.parents[j] == g[4] for j in range(model.njoints)):
+            raise ValueError(f"joint {model.names[g[4]]!r} of a universal actuator is not a leaf")
+    return (np.array(g1, dtype=np.int64), np.array(g3, dtype=np.int64), np.array(gs, dtype=np.int64), hj,
+            np.array([model.inertias[g[4]].mass for g in gs], dtype=float),
+            np.array([model.inertias[g[4]].lever for g in gs], dtype=float),
+            np.array([model.inertias[g[4]].inertia for g in gs], dtype=float),
+            np.array(model.gravity.linear, dtype=float))
+
+
 class StageKernel:
     """The constant arrays of the compiled stage and projection, built once per simulator from the reference objects
     (so both paths use the same weights, layouts and actuator groups).  ``w_tau`` (nv,) and ``w_lambda`` (per
@@ -197,35 +227,8 @@ class StageKernel:
             welds = np.array([fi[f] for f in contacts.welds], dtype=np.int64)
             self.phase[ph] = (ip, fp_, welds, int(model.idx_qs[jid]), int(model.idx_vs[jid]), contacts.welds,
                               contacts.locks[0])
-        # actuator groups (Actuators._groups / _batches in flat integer tables)
-        g1, g3, gs = [], [], []
-        hj = np.array(act._hj_unique, dtype=np.int64)
-        for gi, (rows, comps, hjid, sl, tj, higher_is_parent) in enumerate(act._groups):
-            slot = act._hj_unique.index(hjid)
-            vidx = act._vidx[sl]
-            sg = act._signs[sl].astype(np.int64)
-            if len(rows) == 1:
-                g1.append([rows[0], vidx[0], sg[0], slot, comps[0]])
-            elif len(rows) == 3:
-                if list(comps) != [0, 1, 2]:
-                    raise ValueError(f"actuator group {gi}: three components must be x, y, z")
-                g3.append(list(rows) + list(vidx) + list(sg) + [slot])
-            else:
-                if higher_is_parent:
-                    raise ValueError(f"actuator group {gi}: the two-component (universal) joint must carry a "
-                                     "leaf body on its child side")
-                gs.append(list(rows) + list(comps) + [tj, slot])
-        self.g1 = np.array(g1, dtype=np.int64)
-        self.g3 = np.array(g3, dtype=np.int64)
-        self.gs = np.array(gs, dtype=np.int64)
-        self.hj = hj
-        self.arm_mass = np.array([model.inertias[g[4]].mass for g in gs], dtype=float)
-        self.arm_lever = np.array([model.inertias[g[4]].lever for g in gs], dtype=float)
-        self.arm_I = np.array([model.inertias[g[4]].inertia for g in gs], dtype=float)
-        for g in gs:
-            if any(model.parents[j] == g[4] for j in range(model.njoints)):
-                raise ValueError(f"joint {model.names[g[4]]!r} of a universal actuator is not a leaf")
-        self.gravity = np.array(model.gravity.linear, dtype=float)
+        (self.g1, self.g3, self.gs, self.hj, self.arm_mass, self.arm_lever, self.arm_I,
+         self.gravity) = actuator_tables(model, act)
         self._act = act
         self._limits = self._act_limits()
         self.support = SupportKernel(hm, self.tree)
