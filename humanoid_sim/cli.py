@@ -101,7 +101,7 @@ def _main(argv: list[str] | None) -> int:
         return 1
 
 
-def _build_kernel(args: argparse.Namespace) -> "KernelBuild | None":
+def _build_kernel(args: argparse.Namespace, scenario) -> "KernelBuild | None":
     """Start compiling the kernel into numba's disk cache in child processes when this run needs it and the cache
     is missing or stale (:mod:`humanoid_sim.kernel.build`); the running build, or None."""
     import os
@@ -117,12 +117,13 @@ def _build_kernel(args: argparse.Namespace) -> "KernelBuild | None":
         return None
     from humanoid_sim.kernel import build
 
-    if build.cache_ready():
+    parts = build.parts_for(scenario)
+    if build.cache_ready(parts):
         return None
     if not args.quiet:
         print("walk.py: compiling the simulation kernel (first run after an install or an edit of "
               "humanoid_sim/kernel/compiled.py; numba caches it for later runs)", file=sys.stderr)
-    return build.KernelBuild(args.scenario).start()
+    return build.KernelBuild(args.scenario, parts).start()
 
 
 def _wait_kernel(running: "KernelBuild", quiet: bool) -> None:
@@ -152,7 +153,7 @@ def _wait_kernel(running: "KernelBuild", quiet: bool) -> None:
 
 def _run(args: argparse.Namespace, scenario, out: Path) -> int:
     """Simulate a validated scenario and write its outputs into ``out``; the exit status."""
-    running = _build_kernel(args)
+    running = _build_kernel(args, scenario)
     try:
         from humanoid_sim.controllers.loading import ControllerLoadError
         from humanoid_sim.model import load_model

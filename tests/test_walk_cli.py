@@ -409,3 +409,28 @@ def test_kernel_build_children_compile_the_loaded_package(tmp_path, monkeypatch)
     for cmd, kw in seen:
         assert Path(kw["cwd"]) == package_root
         assert Path(cmd[-1]).is_absolute() and Path(cmd[-1]) == tmp_path / "scripts/params/sim1.yaml"
+
+
+def test_the_kernel_build_compiles_what_the_walks_controller_calls(monkeypatch):
+    """A zmp_preview walk driven by the balance controller builds the support and balance parts (not the thesis
+    controller's stages it never calls); with gait.controller: thesis, or a user's controller, the thesis parts.
+    The balance part's representative call runs (here from the cache the other tests filled)."""
+    from humanoid_sim.kernel import build
+    from humanoid_sim.scenario import load_scenario
+
+    zmp = load_scenario(ROOT / "scripts" / "params" / "sim3_zmp.yaml")
+    assert build.parts_for(zmp) == build.BALANCE_PARTS == ("support", "balance")
+    assert build.parts_for(load_scenario(ROOT / "scripts" / "params" / "sim3.yaml")) == build.PARTS
+    thesis_exec = copy.deepcopy(zmp)
+    object.__setattr__(thesis_exec.gait, "controller", "thesis")
+    assert build.parts_for(thesis_exec) == build.PARTS
+    names = {n for part in build.BALANCE_PARTS for n in build.PLAN[part]}
+    assert {"balance_stage", "balance_finish", "project_on_support", "advance_on_support"} == names
+    called = []
+    from humanoid_sim.kernel import compiled
+
+    real = compiled.balance_stage
+    monkeypatch.setattr("humanoid_sim.controllers.balance.balance_stage",
+                        lambda *a: called.append(1) or real(*a))
+    build._compile_balance(ROOT / "scripts" / "params" / "sim3_zmp.yaml")
+    assert called == [1]

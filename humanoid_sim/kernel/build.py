@@ -54,13 +54,29 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-ENTRY_POINTS = ("ssp_stage", "dsp_stage", "project_on_support", "advance_on_support")
-"""The compiled functions a walk calls from Python (``StageKernel.stage`` / ``project`` / ``advance``)."""
-PLAN = {"ssp": ("ssp_stage", "project_on_support", "advance_on_support"), "dsp": ("ssp_dynamics", "dsp_stage")}
+ENTRY_POINTS = ("ssp_stage", "dsp_stage", "project_on_support", "advance_on_support", "balance_stage",
+                "balance_finish")
+"""The compiled functions a walk calls from Python (``StageKernel.stage`` / ``project`` / ``advance``, the balance
+controller's ``_qp_compiled`` / ``_finish``)."""
+PLAN = {"ssp": ("ssp_stage", "project_on_support", "advance_on_support"), "dsp": ("ssp_dynamics", "dsp_stage"),
+        "support": ("project_on_support", "advance_on_support"), "balance": ("balance_stage", "balance_finish")}
 """What each child process of :func:`build` compiles, in order: the entry points and, first in ``dsp``, the computed
-torque half of ``ssp_stage`` (which the ``ssp`` child then loads from the cache instead of compiling it too)."""
-PARTS = tuple(PLAN)
-"""Child processes of :func:`build`, one per core of the development machine."""
+torque half of ``ssp_stage`` (which the ``ssp`` child then loads from the cache instead of compiling it too).
+``support`` and ``balance`` are the kernel of a walk driven by the balance controller (the zmp gait's default),
+which needs neither of the thesis controller's stages."""
+PARTS = ("ssp", "dsp")
+"""Child processes of :func:`build` for the thesis controller, one per core of the development machine."""
+BALANCE_PARTS = ("support", "balance")
+"""Child processes of :func:`build` for the balance controller."""
+
+
+def parts_for(scenario: Any) -> tuple[str, ...]:
+    """The parts a walk of ``scenario`` (a parsed :class:`humanoid_sim.scenario.Scenario`) calls: the balance
+    controller's when its gait is zmp_preview with the default executor and no controller of the user's."""
+    gait = scenario.gait
+    if scenario.controller_class is None and gait.is_zmp and gait.controller == "balance":
+        return BALANCE_PARTS
+    return PARTS
 LOCKS_ENV = "HUMANOID_SIM_KERNEL_LOCKS"
 """Environment variable naming the folder of the children's per-function lock files (set by :class:`KernelBuild`)."""
 KEEP_MACHINE_CODE = ENTRY_POINTS + ("nrt", "multi3")
@@ -74,17 +90,17 @@ class KernelBuildError(RuntimeError):
     """A child process failed to compile its part of the kernel (the message carries its stderr)."""
 
 
-def _dispatchers() -> dict[str, object]:
+def _dispatchers(parts: tuple[str, ...] = PARTS) -> dict[str, object]:
     from humanoid_sim.kernel import compiled
 
-    return {name: getattr(compiled, name) for name in ENTRY_POINTS}
+    return {name: getattr(compiled, name) for part in parts for name in PLAN[part] if name in ENTRY_POINTS}
 
 
-def cache_ready() -> bool:
-    """Whether numba's disk cache holds a current compilation of every entry point (its index matches the source
-    file of ``compiled.py``); False when unsure."""
+def cache_ready(parts: tuple[str, ...] = PARTS) -> bool:
+    """Whether numba's disk cache holds a current compilation of every entry point of ``parts`` (its index matches
+    the source file of ``compiled.py``); False when unsure."""
     try:
-        for disp in _dispatchers().values():
+        for disp in _dispatchers(parts).values():
             cache = getattr(disp, "_cache", None)
             index = cache._cache_file._load_index()  # {} when missing or stale (source stamp differs)
             if not index:
@@ -343,6 +359,9 @@ def _compile_part(part: str, scenario: Path) -> None:
     from humanoid_sim.kernel import compiled, stage
     from humanoid_sim.phases import Phase
 
+    if part == "balance":
+        _compile_balance(scenario)
+        return
     kern, stage_args, q, v, data, n_rates = sample_stage(scenario)
     ssp, dsp = Phase.LFFSSP, Phase.RFFDSP
     calls = {"ssp_stage": lambda: kern.stage(ssp, *stage_args(ssp)),
@@ -356,9 +375,37 @@ def _compile_part(part: str, scenario: Path) -> None:
         calls[name]()
 
 
+def _compile_balance(scenario: Path) -> None:
+    """Compile ``balance_stage`` and ``balance_finish`` by one call of the balance controller at the scenario's
+    initial state on chapter 3's trajectory of its path (no gait planning: the argument types are those of any
+    walk).  Unlike the thesis parts this runs the compiled code once (~0.2 ms)."""
+    import numpy as np
+
+    from humanoid_sim.contact import ContactDynamics
+    from humanoid_sim.contact.constraints import record_anchors
+    from humanoid_sim.controllers.balance import BalanceController
+    from humanoid_sim.controllers.base import ControlContext, Observation
+    from humanoid_sim.engines.weld import WeldModel
+    from humanoid_sim.initial import initial_configuration
+    from humanoid_sim.model import load_model
+    from humanoid_sim.phases import Phase
+    from humanoid_sim.scenario import load_scenario
+    from humanoid_sim.trajectory import ReferenceTrajectory
+
+    hm = load_model()
+    sc = load_scenario(scenario)
+    q = initial_configuration(hm, sc.path)
+    traj = ReferenceTrajectory(sc.path)
+    ctl = BalanceController()
+    ctl.setup(ControlContext(hm, sc, traj, q, "pinocchio", WeldModel(ContactDynamics(hm.model))))
+    phase = Phase(traj.phases[0].name)
+    ctl(Observation(t=0.0, k=0, phase=phase, q=q, v=np.zeros(hm.model.nv),
+                    anchors=record_anchors(hm.model, q, phase.contacts)))
+
+
 if __name__ == "__main__":  # pragma: no cover - the child process of build()
     if len(sys.argv) != 3:
-        sys.exit("usage: python -m humanoid_sim.kernel.build PART SCENARIO  (PART: ssp or dsp)")
+        sys.exit("usage: python -m humanoid_sim.kernel.build PART SCENARIO  (PART: ssp, dsp, support or balance)")
     _skip_callee_optimisation()
     _skip_callee_machine_code()
     if os.environ.get(LOCKS_ENV):
