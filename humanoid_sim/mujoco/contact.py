@@ -94,13 +94,12 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class _SoleTables:
     """Lookup tables of a model's soles.  Per geom id: ``foot`` the foot index (0 'R', 1 'L', -1 not a sole),
-    ``box`` the sole box (0 toe, 1 main body), ``group`` 2 foot + box (-1 not a sole).  ``pair_group[g1][g2]``
-    (nested lists, read per contact in Python): the sole's group when the geom pair (g1, g2) is a sole and the
-    floor (either order), else -1.  Per sole geom id, ``corners`` (4, 3): its bottom corners in its own frame (m)."""
+    ``box`` the sole box (0 toe, 1 main body).  ``pair_group[g1][g2]`` (nested lists, read per contact in Python):
+    the sole's group 2 foot + box when the geom pair (g1, g2) is a sole and the floor (either order), else -1.
+    Per sole geom id, ``corners`` (4, 3): its bottom corners in its own frame (m)."""
 
     foot: np.ndarray
     box: np.ndarray
-    group: np.ndarray
     pair_group: list[list[int]]
     corners: dict[int, np.ndarray]
 
@@ -112,16 +111,15 @@ def _tables(mm: MujocoModel) -> _SoleTables:
         n = mm.model.ngeom
         foot = np.full(n, -1, dtype=int)
         box = np.zeros(n, dtype=int)
-        group = np.full(n, -1, dtype=int)
         pair_group = np.full((n, n), -1, dtype=int)
         corners = {}
         signs = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1]], dtype=float)
         for i, f in enumerate(FEET):
             for j, g in enumerate(mm.sole_geoms[f]):
-                foot[g], box[g], group[g] = i, j, 2 * i + j
+                foot[g], box[g] = i, j
                 pair_group[mm.floor_geom, g] = pair_group[g, mm.floor_geom] = 2 * i + j
                 corners[g] = signs * mm.model.geom_size[g]
-        tables = _SoleTables(foot, box, group, pair_group.tolist(), corners)
+        tables = _SoleTables(foot, box, pair_group.tolist(), corners)
         mm._sole_tables = tables
     return tables
 
@@ -162,43 +160,44 @@ def _contact_forces(model: mujoco.MjModel, data: mujoco.MjData, ids: np.ndarray)
     return f6, False
 
 
-def _loads(group: list[int], normal: list[float], depth: list[float]) -> dict[str, FootLoad]:
-    """The :class:`FootLoad` of each foot from its contacts: ``group`` 2 foot + box of each contact (-1 for one
-    that is not a sole-floor contact), ``normal`` their normal forces (N), ``depth`` their penetrations (m,
-    -dist).  Each box's normal force is summed left to right in the lists' order (so, for MuJoCo's at most 4
-    contacts of a box on a plane, it is numpy's sum of those forces to the bit)."""
+def _loads(group: list[int], normal: list[float], dist: list[float]) -> dict[str, FootLoad]:
+    """The :class:`FootLoad` of each foot from its contacts in MuJoCo's order: ``group`` 2 foot + box of each
+    contact (-1: not a sole-floor contact), ``normal`` their normal forces (N), ``dist`` their signed distances
+    (m, negative: penetration).  Each box's normal force is summed left to right (for a box's at most 4 contacts
+    with a plane, numpy's sum of those forces, to the bit)."""
     sums = [0.0, 0.0, 0.0, 0.0]
     deepest = [-math.inf, -math.inf]
     touches = [False, False]
-    for g, n, d in zip(group, normal, depth):
+    for g, n, d in zip(group, normal, dist):
         if g < 0:
-            continue
+            continue                    # not a sole-floor contact (the model has none, by contype)
         f = g >> 1
         sums[g] += n
         touches[f] = True
-        if d > deepest[f]:
-            deepest[f] = d
+        if -d > deepest[f]:
+            deepest[f] = -d
     return {foot: FootLoad(foot, sums[2 * i], sums[2 * i + 1], max(0.0, deepest[i])) if touches[i]
             else FootLoad(foot) for i, foot in enumerate(FEET)}
 
 
 def foot_loads(mm: MujocoModel, data: mujoco.MjData) -> dict[str, FootLoad]:
     """Normal forces and penetration of each foot at the current ``data`` (after ``mj_forward`` or ``mj_step``):
-    the part of :func:`foot_contacts` that the touchdown and fall checks read, equal to it to the bit and a few
-    times cheaper (no contact frames, points or moments; a few contacts, so read as Python floats)."""
+    the part of :func:`foot_contacts` that the touchdown and fall checks read (the same numbers: both sum with
+    :func:`_loads`), a few times cheaper than the whole (no contact frames, points or moments; a few contacts,
+    read as Python floats)."""
     ncon = data.ncon
     if ncon == 0:
         return {foot: FootLoad(foot) for foot in FEET}
     model, con = mm.model, data.contact
-    pair_group = _tables(mm).pair_group
-    group = [pair_group[a][b] for a, b in con.geom.tolist()]
     if model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC:
         # an elliptic cone's normal force is the contact's first efc row (mj_contactForce: zero without rows)
         efc = data.efc_force.tolist()
         normal = [efc[a] if a >= 0 else 0.0 for a in con.efc_address.tolist()]
     else:
         normal = _contact_forces(model, data, np.arange(ncon))[0][:, 0].tolist()
-    return _loads(group, normal, [-d for d in con.dist.tolist()])
+    pair_group = _tables(mm).pair_group
+    group = [pair_group[g1][g2] for g1, g2 in con.geom.tolist()]
+    return _loads(group, normal, con.dist.tolist())
 
 
 def _sole_floor(mm: MujocoModel, foot_of: np.ndarray, geoms: np.ndarray
@@ -247,10 +246,9 @@ def foot_contacts(mm: MujocoModel, data: mujoco.MjData) -> dict[str, FootContact
     else:
         T = np.einsum("kji,kj->ki", frames, f6[:, 3:])
         fm[:, 3:] = _cross(P, fm[:, :3]) + (T if sign is None else sign[:, None] * T)
-    group = tables.group[geom].tolist()
-    loads = _loads(group, f6[:, 0].tolist(), (-con.dist[ids]).tolist())
-    n_right = sum(g < 2 for g in group)
-    boxes = tables.box[geom]
+    feet, boxes = tables.foot[geom], tables.box[geom]
+    loads = _loads((2 * feet + boxes).tolist(), f6[:, 0].tolist(), con.dist[ids].tolist())
+    n_right = ids.size - int(np.count_nonzero(feet))
     out = {}
     for foot, (a, b) in zip(FEET, ((0, n_right), (n_right, ids.size))):
         load = loads[foot]
@@ -303,9 +301,15 @@ class SlipMeter:
         if anchor is None:
             self._anchor[foot] = np.asarray(corners, dtype=float).tolist()
             return 0.0
-        # in floats, with numpy's arithmetic for np.linalg.norm(corners[:, :2] - anchor, axis=1): dx^2 + dy^2
-        s = max(math.sqrt((c[0] - a[0]) * (c[0] - a[0]) + (c[1] - a[1]) * (c[1] - a[1]))
-                for c, a in zip(np.asarray(corners, dtype=float).tolist(), anchor, strict=True))
+        # in floats, with numpy's arithmetic for np.max(np.linalg.norm(corners[:, :2] - anchor, axis=1)): the
+        # largest dx^2 + dy^2, then its square root (sqrt is correctly rounded and increasing: the same number)
+        largest = 0.0
+        for c, a in zip(np.asarray(corners, dtype=float).tolist(), anchor, strict=True):
+            dx, dy = c[0] - a[0], c[1] - a[1]
+            d2 = dx * dx + dy * dy
+            if d2 > largest:
+                largest = d2
+        s = math.sqrt(largest)
         self.current[foot] = s
         self.max_slip[foot] = max(self.max_slip[foot], s)
         return s
