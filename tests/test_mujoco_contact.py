@@ -191,3 +191,140 @@ def test_sole_cop_names_the_edge(hm: HumanoidModel, q0: np.ndarray) -> None:
     for foot in "RL":
         cop = sole_cop(sim.mm, sim.data, sim.foot_wrenches()[foot])
         assert cop.edges == () and cop.margin > 0.01
+
+
+# ---------------------------------------------------------------------------------------- the vectorised reads
+def _dropped(hm: HumanoidModel, q0: np.ndarray, steps: int, cone: str = "elliptic") -> MujocoSim:
+    """Sim 1's initial posture released 5 mm above the ground under the standing PD, after ``steps`` MuJoCo steps
+    (the feet land at ~32 ms: step 35 is the impact, 60 its end, 300 standing)."""
+    sim = MujocoSim(hm, MujocoSettings(cone=cone))
+    ctrl = StandingController(hm, q0, H)
+    q = q0.copy()
+    q[2] += 0.005
+    sim.set_state(q, np.zeros(hm.model.nv))
+    for _ in range(steps):
+        sim.step(ctrl(*sim.state()), H)
+    sim.forward()
+    return sim
+
+
+def _per_contact(sim: MujocoSim) -> dict[str, dict]:
+    """An independent read of the feet's ground reactions: per contact, mj_contactForce turned to the world frame
+    with a matrix product and np.cross, in MuJoCo's contact order; per foot and box, the lists of normals."""
+    m, d, mm = sim.model, sim.data, sim.mm
+    out = {f: {"force": np.zeros(3), "moment": np.zeros(3), "normal": ([], []), "points": [], "pen": [],
+               "point_normal": [], "point_geom": []} for f in "RL"}
+    for i in range(d.ncon):
+        c = d.contact[i]
+        f6 = np.zeros(6)
+        mujoco.mj_contactForce(m, d, i, f6)
+        g1, g2 = (int(g) for g in c.geom)
+        [(foot, box, g)] = [(f, b, g) for f in "RL" for b, g in enumerate(mm.sole_geoms[f]) if g in (g1, g2)]
+        assert {g1, g2} == {g, mm.floor_geom}
+        sign = 1.0 if g2 == g else -1.0        # the contact force acts on geom2
+        R = c.frame.reshape(3, 3)              # rows: normal, tangents
+        F = sign * (R.T @ f6[:3])
+        o = out[foot]
+        if o["points"]:
+            o["force"] = o["force"] + F
+            o["moment"] = o["moment"] + np.cross(c.pos, F) + sign * (R.T @ f6[3:])
+        else:
+            o["force"], o["moment"] = F, np.cross(c.pos, F) + sign * (R.T @ f6[3:])
+        o["normal"][box].append(f6[0])
+        o["point_normal"].append(f6[0])
+        o["point_geom"].append(box)
+        o["points"].append(c.pos.copy())
+        o["pen"].append(-c.dist)
+    return out
+
+
+@pytest.mark.parametrize("cone", ["elliptic", "pyramidal"])
+def test_contact_forces_are_mj_contactForce(hm: HumanoidModel, q0: np.ndarray, cone: str) -> None:
+    """contact_forces (one gather from efc_force for an elliptic cone) = mj_contactForce per contact, to the bit,
+    through the impact and standing, for all contacts and for a subset in another order."""
+    from humanoid_sim.mujoco.contact import contact_forces
+
+    for steps in (35, 60, 300):
+        sim = _dropped(hm, q0, steps, cone)
+        m, d = sim.model, sim.data
+        assert d.ncon >= 8
+        expect = np.zeros((d.ncon, 6))
+        for i in range(d.ncon):
+            mujoco.mj_contactForce(m, d, i, expect[i])
+        assert np.all(expect[:, 0] > 0) and np.any(expect[:, 1:3] != 0)   # loaded, with friction
+        np.testing.assert_array_equal(contact_forces(m, d, np.arange(d.ncon)), expect)
+        ids = np.array([d.ncon - 1, 0, 3])
+        np.testing.assert_array_equal(contact_forces(m, d, ids), expect[ids])
+        assert contact_forces(m, d, np.zeros(0, dtype=int)).shape == (0, 6)
+    with pytest.raises(IndexError, match=r"expected indices in \[0, ncon"):
+        contact_forces(m, d, np.array([d.ncon]))
+    with pytest.raises(TypeError, match="1-d integer array"):
+        contact_forces(m, d, np.array([0.0]))
+
+
+@pytest.mark.parametrize("cone", ["elliptic", "pyramidal"])
+def test_foot_contacts_and_loads_against_per_contact_reads(hm: HumanoidModel, q0: np.ndarray, cone: str) -> None:
+    """foot_contacts against the per-contact read (_per_contact); foot_loads = foot_contacts' loads to the bit."""
+    from humanoid_sim.mujoco.contact import foot_loads
+
+    for steps in (35, 60, 300):
+        sim = _dropped(hm, q0, steps, cone)
+        fw, loads, ref = foot_contacts(sim.mm, sim.data), foot_loads(sim.mm, sim.data), _per_contact(sim)
+        for foot in "RL":
+            c, r = fw[foot], ref[foot]
+            # 1e-9 N and N m on forces and moments up to ~2000: the same terms summed in the same order; a matrix
+            # product and np.cross may round the last bit differently from the vectorised rotation (1e-16 relative)
+            np.testing.assert_allclose(c.force, r["force"], atol=1e-9, rtol=0)
+            np.testing.assert_allclose(c.moment, r["moment"], atol=1e-9, rtol=0)
+            np.testing.assert_array_equal(c.points, np.array(r["points"]))              # copies
+            np.testing.assert_array_equal(c.point_normal, r["point_normal"])
+            np.testing.assert_array_equal(c.point_geom, r["point_geom"])
+            # each box's normal force: the same numbers in MuJoCo's order, summed left to right; numpy's sum of
+            # fewer than 8 numbers (a box on a plane has at most 4 contacts) does the same, to the bit
+            assert all(len(x) <= 4 for x in r["normal"])
+            assert c.normal_toe == np.sum(r["normal"][0]) and c.normal_main == np.sum(r["normal"][1])
+            assert c.penetration == max(0.0, max(r["pen"]))
+            assert c.normal > 0 and c.penetration > 0
+            load = loads[foot]
+            assert (load.normal_toe, load.normal_main, load.penetration) == (c.normal_toe, c.normal_main,
+                                                                              c.penetration)
+
+
+def test_foot_contacts_with_the_sole_as_geom1(hm: HumanoidModel, q0: np.ndarray) -> None:
+    """A sole-floor contact listed sole first (geom1; MuJoCo puts the plane first) acts on the foot with the
+    opposite sign: with the pair and the contact frame both flipped, the feet's wrenches are unchanged."""
+    sim = _dropped(hm, q0, 60)
+    d = sim.data
+    before = foot_contacts(sim.mm, d)
+    flip = np.arange(0, d.ncon, 2)
+    con = d.contact
+    con.geom[flip] = con.geom[flip][:, ::-1].copy()
+    con.frame[flip] = -con.frame[flip]
+    after = foot_contacts(sim.mm, d)
+    for foot in "RL":
+        np.testing.assert_array_equal(after[foot].force, before[foot].force)      # -(-x): exact
+        np.testing.assert_array_equal(after[foot].moment, before[foot].moment)
+        np.testing.assert_array_equal(after[foot].point_normal, before[foot].point_normal)
+        assert after[foot].normal == before[foot].normal
+
+
+def test_cross_is_np_cross() -> None:
+    """The row-wise cross product: the same products and differences as np.cross, to the bit."""
+    from humanoid_sim.mujoco.contact import _cross
+
+    rng = np.random.default_rng(7)
+    for k in (1, 4, 16):
+        a, b = rng.normal(size=(k, 3)) * 100, rng.normal(size=(k, 3))
+        np.testing.assert_array_equal(_cross(a, b), np.cross(a, b))
+
+
+def test_slip_meter_is_the_norm_of_the_corner_travel() -> None:
+    """SlipMeter's slip (in Python floats) is numpy's np.max(np.linalg.norm(travel[:, :2], axis=1)), to the bit:
+    the same differences, squares, sum of two and square root."""
+    rng = np.random.default_rng(11)
+    meter = SlipMeter()
+    start = rng.normal(size=(4, 3)) * 0.1
+    meter.update("R", True, start)
+    for scale in (1e-6, 1e-3, 1e-1):
+        corners = start + rng.normal(size=(4, 3)) * scale
+        assert meter.update("R", True, corners) == np.max(np.linalg.norm(corners[:, :2] - start[:, :2], axis=1))

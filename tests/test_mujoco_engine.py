@@ -265,3 +265,40 @@ def test_control_rate_converges_on_the_zmp_walk(hm):
     err = {p: float(np.linalg.norm(paths[p] - ref, axis=1).max()) for p in (0.005, 0.002)}
     assert err[0.002] < err[0.005] / 2, err
     assert err[0.002] < 0.5e-3, err
+
+
+def test_body_wrenches_against_per_contact_sums(hm: HumanoidModel, sc) -> None:
+    """The log's ``body_force`` / ``body_moment`` (MujocoEngine._body_wrenches, one pass over a foot's contacts)
+    against an independent read: per contact mj_contactForce turned to the world frame, summed per sole body with
+    np.cross about the body's CoM, rotated to the body frame; standing on both feet, all four sole bodies loaded."""
+    import mujoco
+
+    from humanoid_sim.model import FOOT_BODY, TOE_BODY
+    from humanoid_sim.mujoco.contact import foot_contacts
+
+    _, eng = _hold(hm, sc, FlatFeetPD(), t_end=0.1)
+    m, d, mm = eng.sim.model, eng.sim.data, eng.mm
+    feet = foot_contacts(mm, d)
+    bf, bm = np.zeros((4, 3)), np.zeros((4, 3))
+    for f in "RL":
+        eng._body_wrenches(f, feet[f], bf, bm)
+    F_ref, M_ref = np.zeros((4, 3)), np.zeros((4, 3))
+    for i in range(d.ncon):
+        c = d.contact[i]
+        f6 = np.zeros(6)
+        mujoco.mj_contactForce(m, d, i, f6)
+        g = int(c.geom[1])                              # MuJoCo lists the floor first
+        [(foot, box)] = [(f, b) for f in "RL" for b in (0, 1) if mm.sole_geoms[f][b] == g]
+        body = (TOE_BODY if box == 0 else FOOT_BODY)[foot]
+        bid = mm.foot_bodies[foot][box]
+        F = c.frame.reshape(3, 3).T @ f6[:3]
+        F_ref[body - 1] += F
+        M_ref[body - 1] += np.cross(c.pos - d.xipos[bid], F)
+    for foot in "RL":
+        for box, body in ((0, TOE_BODY[foot]), (1, FOOT_BODY[foot])):
+            Rt = d.xmat[mm.foot_bodies[foot][box]].reshape(3, 3).T
+            F_ref[body - 1], M_ref[body - 1] = Rt @ F_ref[body - 1], Rt @ M_ref[body - 1]
+    assert np.all(np.abs(F_ref[:, 2]) > 1.0)              # every sole body carries load
+    # 1e-9 N and N m on forces up to ~400 N: the same terms, summed in the same order, rotated by another product
+    np.testing.assert_allclose(bf, F_ref, atol=1e-9, rtol=0)
+    np.testing.assert_allclose(bm, M_ref, atol=1e-9, rtol=0)

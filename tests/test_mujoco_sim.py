@@ -104,3 +104,38 @@ def test_bad_input_and_divergence(hm: HumanoidModel, sim: MujocoSim, q0: np.ndar
     np.testing.assert_array_equal(q1, q_good)
     np.testing.assert_array_equal(v1, v_good)
     assert sim.time == t_good
+
+
+def test_hold_and_advance_are_step(hm: HumanoidModel, q0: np.ndarray, tmp_path, monkeypatch) -> None:
+    """hold(tau) then advance(1) and advance(2) = step(tau, 3 ms), bit for bit (what the engine does to read the
+    contact forces after a control update's first MuJoCo step); advance checks as step does."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo appends its warnings to MUJOCO_LOG.TXT in the working directory
+    a, b = MujocoSim(hm), MujocoSim(hm)
+    ctrl = StandingController(hm, q0, 1e-3)
+    for s in (a, b):
+        s.set_state(q0, np.zeros(hm.model.nv))
+    for _ in range(5):
+        tau = ctrl(*a.state())
+        a.step(tau, 0.003)
+        b.hold(tau)
+        b.advance(1)
+        b.advance(2)
+    assert a.time == b.time
+    np.testing.assert_array_equal(a.data.qpos, b.data.qpos)
+    np.testing.assert_array_equal(a.data.qvel, b.data.qvel)
+    for n in (0, -1, 1.0):
+        with pytest.raises(MujocoSimError, match="expected an integer >= 1"):
+            b.advance(n)
+    tau = np.zeros(hm.model.nv)
+    tau[10] = np.inf
+    with pytest.raises(MujocoSimError, match="non-finite joint torques"):
+        b.hold(tau)
+    tau[10] = 1e30  # MuJoCo would silently zero the control
+    b.hold(tau)
+    q_good, v_good, t_good = *b.state(), b.time
+    with pytest.raises(MujocoSimError, match="mjWARN_BADCTRL in the step from t = "):
+        b.advance(2)
+    q1, v1 = b.state()  # the last good state is kept
+    np.testing.assert_array_equal(q1, q_good)
+    np.testing.assert_array_equal(v1, v_good)
+    assert b.time == t_good

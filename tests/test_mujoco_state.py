@@ -144,3 +144,30 @@ def test_bad_shapes(setup) -> None:
         smap.qpos_from_q(np.zeros(32))
     with pytest.raises(MujocoModelError, match=r"tau: expected shape \(32,\), got \(26,\)"):
         smap.ctrl_from_tau(np.zeros(26))
+
+
+def test_gathers_are_the_written_out_maps(hm: HumanoidModel, setup) -> None:
+    """Each map is one gather (q_gather, v_gather, ctrl_gather): the same numbers as the maps written out from the
+    index pairs, to the bit; a map that is not one-to-one is refused."""
+    _, _, smap = setup
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q, v = _random_state(hm, rng)
+        qpos, qvel, tau = smap.qpos_from_q(q), rng.normal(size=32), rng.normal(size=32) * 50
+        expect_q = np.empty(33)
+        expect_q[:3], expect_q[3:6], expect_q[6] = qpos[:3], qpos[4:7], qpos[3]
+        expect_q[smap.pin_q] = qpos[smap.mj_q]
+        np.testing.assert_array_equal(smap.q_from_qpos(qpos), expect_q)
+        R = pin.Quaternion(qpos[3], qpos[4], qpos[5], qpos[6]).normalized().toRotationMatrix()
+        for got, x in ((smap.v_from_qvel(qpos, qvel), qvel), (smap.tau_from_qfrc(expect_q, qvel), qvel)):
+            expect = np.empty(32)
+            expect[:3], expect[3:6] = R.T @ x[:3], x[3:6]
+            expect[smap.pin_v] = x[smap.mj_v]
+            np.testing.assert_array_equal(got, expect)
+        expect_ctrl = np.empty(26)
+        expect_ctrl[smap.mj_u] = tau[smap.pin_u]
+        np.testing.assert_array_equal(smap.ctrl_from_tau(tau), expect_ctrl)
+    bad = smap.pin_q.copy()
+    bad[0] = bad[1]
+    with pytest.raises(MujocoModelError, match="the q index maps are not a one-to-one map of 33 entries"):
+        StateMap(smap.nq, smap.nv, smap.nu, bad, smap.mj_q, smap.pin_v, smap.mj_v, smap.pin_u, smap.mj_u)

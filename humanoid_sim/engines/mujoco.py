@@ -71,7 +71,8 @@ from humanoid_sim.contact import record_anchors
 from humanoid_sim.controllers.base import Command, Observation
 from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
 from humanoid_sim.model import FOOT_BODY, TOE_BODY, HumanoidModel
-from humanoid_sim.mujoco.contact import FootContact, _cross, SlipMeter, foot_contacts, sole_cop, sole_corners, sole_tilt
+from humanoid_sim.mujoco.contact import (FootContact, FootLoad, _cross, SlipMeter, foot_contacts, foot_loads, sole_cop,
+                                         sole_corners, sole_tilt)
 from humanoid_sim.mujoco.model import MujocoModelError, MujocoSettings
 from humanoid_sim.mujoco.sim import MujocoSim, MujocoSimError
 from humanoid_sim.phases import Phase
@@ -157,6 +158,7 @@ class MujocoEngine:
         self.data = hm.model.createData()
         self.rec_data = hm.model.createData()
         self.fid = {n: hm.frame_id(n) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2")}
+        self._frame_ids: dict[str, int] = {}
         self._n_sub = self.sim.substeps(self.settings.control_period_s)  # checks the period is whole timesteps
         self._body = {TOE_BODY[f]: self.mm.foot_bodies[f][0] for f in FEET}
         self._body.update({FOOT_BODY[f]: self.mm.foot_bodies[f][1] for f in FEET})
@@ -164,7 +166,7 @@ class MujocoEngine:
         self.q = self.v = None
         self.phase: Phase | None = None
         self.anchors = None
-        self._end: dict[str, FootContact] = {}
+        self._end: dict[str, FootLoad] = {}
         self._reset_measures()
 
     def _reset_measures(self) -> None:
@@ -209,19 +211,22 @@ class MujocoEngine:
             cmd = control(Observation(ti, k, phase, q, v, anchors, i, checks.plan_delay))
             tau = self._tau(q, cmd)
             # one MuJoCo step first: its acceleration and contact forces are those of the state at ti
-            sim.step(tau, sim.timestep)
+            sim.hold(tau)
+            sim.advance(1)
             checks.check_acceleration(ti, sim.data.qacc)  # finite iff Pinocchio's a is
-            feet = foot_contacts(self.mm, sim.data)
-            if i == 0:
+            if i == 0:   # the log's record needs the wrenches; the checks only the loads (FootContact is one)
+                feet = foot_contacts(self.mm, sim.data)
                 a = self.map.a_from_qacc(q, v, sim.data.qacc)
                 record = self._record(phase, q, v, a, cmd, tau, feet)
+            else:
+                feet = foot_loads(self.mm, sim.data)
             if self._measure(ti, q, feet):
                 break  # a fall: the run ends at this state (check() reports it)
             if self._n_sub > 1:
-                sim.step(tau, period - sim.timestep)
+                sim.advance(self._n_sub - 1)   # the rest of the control period, tau still held
         self.q, self.v = sim.state()
         sim.forward()
-        self._end = foot_contacts(self.mm, sim.data)
+        self._end = foot_loads(self.mm, sim.data)
         return record
 
     def _tau(self, q: np.ndarray, cmd: Command) -> np.ndarray:
@@ -236,21 +241,15 @@ class MujocoEngine:
         """What the log keeps of the state at a step's start (read right after its first MuJoCo step, whose
         contact forces ``feet`` and acceleration ``a`` are those of that state)."""
         model, d, data = self.model, self.rec_data, self.sim.data
-        fw = np.array([feet[f].wrench for f in FEET])
-        cop = np.array([feet[f].cop if feet[f].force[2] > 0 else np.full(3, np.nan) for f in FEET])
+        fw = np.empty((2, 6))
+        cop = np.empty((2, 3))
         bf, bm = np.zeros((4, 3)), np.zeros((4, 3))
         for i, f in enumerate(FEET):
             c = feet[f]
-            for box, body in ((0, TOE_BODY[f]), (1, FOOT_BODY[f])):
-                sel = c.point_geom == box
-                if not sel.any():
-                    continue
-                bid = self._body[body]
-                R = data.xmat[bid].reshape(3, 3)
-                F = c.point_force[sel]
-                arm = c.points[sel] - data.xipos[bid]
-                bf[body - 1] = R.T @ F.sum(axis=0)
-                bm[body - 1] = R.T @ _cross(arm, F).sum(axis=0)
+            fw[i, :3], fw[i, 3:] = c.force, c.moment
+            cop[i] = c.cop                                   # NaN without normal force
+            if len(c.points):
+                self._body_wrenches(f, c, bf, bm)
         # Pinocchio at (q, v, a): task frames, the drift from the anchors, the dynamics residual
         tau_c = self.map.tau_from_qfrc(q, data.qfrc_constraint)
         residual = float(np.max(np.abs(pin.rnea(model, d, q, v, a) - tau - tau_c)))
@@ -258,9 +257,10 @@ class MujocoEngine:
         pin.updateFramePlacements(model, d)
         pos = ori = 0.0
         for frame, M in self.anchors.placements.items():
-            err = M.actInv(d.oMf[self.hm.frame_id(frame)])
-            pos = max(pos, float(np.linalg.norm(err.translation)))
-            ori = max(ori, float(np.linalg.norm(pin.log3(err.rotation))))
+            err = M.actInv(d.oMf[self._frame_id(frame)])
+            x, w = err.translation, pin.log3(err.rotation)
+            pos = max(pos, math.sqrt(x.dot(x)))              # np.linalg.norm's arithmetic, less overhead
+            ori = max(ori, math.sqrt(w.dot(w)))
         fid = self.fid
         hip_v = pin.getFrameVelocity(model, d, fid["Pc_17"], LWA).linear.copy()
         T, T_cmd, sat, thdd_c = cmd.T, cmd.T_cmd, cmd.saturated, cmd.theta_ddot_cmd
@@ -279,25 +279,57 @@ class MujocoEngine:
                 o[fid["P_tpR"]].translation.copy(), o[fid["P_tpL"]].translation.copy(),
                 o[fid["O_1"]].rotation.copy(), o[fid["O_2"]].rotation.copy(), bf, bm, fw, cop)
 
+    def _body_wrenches(self, foot: str, c: FootContact, bf: np.ndarray, bm: np.ndarray) -> None:
+        """Write into rows ``body - 1`` of bf / bm (4, 3) the ground's force on each of the foot's loaded bodies
+        (toe, main) and its moment about the body's CoM, in the body frame (N, N m), from its contacts ``c``: per
+        body, the sums over its contacts (MuJoCo's order) of the force and of arm x force, then rotated."""
+        data, boxes = self.sim.data, c.point_geom
+        bodies = (TOE_BODY[foot], FOOT_BODY[foot])
+        ids = [self._body[b] for b in bodies]
+        arm = c.points - data.xipos[ids][boxes]              # each contact from its body's CoM, world frame
+        g = np.empty((len(boxes), 6))
+        g[:, :3] = c.point_force
+        g[:, 3:] = _cross(arm, c.point_force)
+        present = set(boxes.tolist())
+        for box, body in enumerate(bodies):
+            if box not in present:
+                continue
+            total = g[boxes == box].sum(axis=0)
+            Rt = data.xmat[ids[box]].reshape(3, 3).T
+            bf[body - 1] = Rt @ total[:3]
+            bm[body - 1] = Rt @ total[3:]
+
+    def _frame_id(self, name: str) -> int:
+        """Pinocchio frame id of a named frame, cached."""
+        fid = self._frame_ids.get(name)
+        if fid is None:
+            fid = self._frame_ids[name] = self.hm.frame_id(name)
+        return fid
+
     # ------------------------------------------------------------------ ground measures and falls
-    def _measure(self, t: float, q: np.ndarray, feet: dict[str, FootContact]) -> bool:
+    def _measure(self, t: float, q: np.ndarray, feet: dict[str, FootLoad]) -> bool:
         """Slip, tilt and penetration at the state (t, q) of a control update, whose kinematics and contact forces
-        ``feet`` MuJoCo's data hold (right after the update's first MuJoCo step); True when it is a fall (the
-        first is kept for :meth:`check`)."""
+        MuJoCo's data hold (right after the update's first MuJoCo step), ``feet`` the feet's loads there (or their
+        full :class:`FootContact`); True when it is a fall (the first is kept for :meth:`check`)."""
         s, mm, data = self.settings, self.mm, self.sim.data
+        f_min = s.contact_force_N
+        stance = None if self.phase is None else self.phase.support_foot   # the flat-held foot
         loaded = []
+        tilts: dict[str, float] = {}
         for f in FEET:
             c = feet[f]
             self.penetration_max = max(self.penetration_max, c.penetration)
-            for box, normal in ((0, c.normal_toe), (1, c.normal_main)):
-                on = normal >= s.contact_force_N      # the corners matter only to a supporting box
-                self.slip[f][box].update(f, on, sole_corners(mm, data, f, box) if on else _NO_CORNERS)
-            if c.normal_main >= s.contact_force_N:
-                tilt = sole_tilt(mm, data, f)
+            toe, main = self.slip[f]
+            on = c.normal_toe >= f_min                  # the corners matter only to a supporting box
+            toe.update(f, on, sole_corners(mm, data, f, 0) if on else _NO_CORNERS)
+            on = c.normal_main >= f_min
+            main.update(f, on, sole_corners(mm, data, f, 1) if on else _NO_CORNERS)
+            if on:
+                tilt = tilts[f] = sole_tilt(mm, data, f)
                 self.tilt_max = max(self.tilt_max, tilt)
-                if self.phase is not None and self.phase.support_foot == f:   # the stance (flat-held) foot
+                if f == stance:
                     self.stance_tilt_max = max(self.stance_tilt_max, tilt)
-            if c.normal >= s.contact_force_N:
+            if c.normal >= f_min:
                 loaded.append(f)
         if self.fall is not None:
             return True
@@ -307,9 +339,12 @@ class MujocoEngine:
         edge = ""
         if len(loaded) == 1:
             f = loaded[0]
-            tilt = sole_tilt(mm, data, f)
+            tilt = tilts[f] if f in tilts else sole_tilt(mm, data, f)
             # the CoP's edges only when the sole tilts (sole_cop costs ~0.1 ms, and this runs at every update)
-            cop = sole_cop(mm, data, feet[f], s.edge_tolerance_m) if tilt > s.edge_tilt_rad else None
+            cop = None
+            if tilt > s.edge_tilt_rad:
+                contact = feet[f] if isinstance(feet[f], FootContact) else foot_contacts(mm, data)[f]
+                cop = sole_cop(mm, data, contact, s.edge_tolerance_m)
             if cop is not None and cop.edges:
                 names = " and ".join(cop.edges)
                 edge = (f"the {FOOT_NAME[f]} foot, the only one on the ground, tipped onto its {names} edge"

@@ -10,7 +10,8 @@
 
 ``step`` writes the joint rows of tau to the 26 motors (the base rows are ignored: nothing actuates the base)
 and advances ``round(h / timestep)`` MuJoCo steps with them unchanged.  MuJoCo resolves impacts and contact
-switching inside its steps; there is no velocity reset.
+switching inside its steps; there is no velocity reset.  ``step`` is ``hold(tau)`` then ``advance(n)``: a caller
+that reads the state between the MuJoCo steps of one control period holds once and advances twice.
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ from humanoid_sim.mujoco.state import StateMap
 
 _BAD = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS,
         mujoco.mjtWarning.mjWARN_BADCTRL)
+_BAD_ROWS = np.array([int(w) for w in _BAD], dtype=np.intp)
+"""Their rows of ``data.warning``, in _BAD's order."""
 
 
 class MujocoSimError(RuntimeError):
@@ -45,6 +48,8 @@ class MujocoSim:
         self.map = StateMap.from_models(hm, self.model)
         self.timestep = float(self.model.opt.timestep)
         self._fresh = False
+        self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters, updated in place
+        self._saved = (np.empty(self.model.nq), np.empty(self.model.nv))  # advance()'s copy of (qpos, qvel)
         self.set_state(hm.initial_q(), np.zeros(hm.model.nv))
 
     # ------------------------------------------------------------------ state
@@ -87,20 +92,34 @@ class MujocoSim:
         would otherwise reset the data or zero the control silently); the state is then restored to the start
         of the step."""
         n = self.substeps(h)
+        self.hold(tau)
+        self.advance(n)
+
+    def hold(self, tau: np.ndarray) -> None:
+        """Put the joint rows of ``tau`` (Pinocchio v order, N m) on the motors, for the following :meth:`advance`
+        calls; raises :class:`MujocoSimError` if one is not finite."""
         ctrl = self.map.ctrl_from_tau(tau)
-        if not np.all(np.isfinite(ctrl)):
+        if not np.isfinite(ctrl).all():
             raise MujocoSimError(f"tau has non-finite joint torques at t = {self.time:.4f} s")
         self.data.ctrl[:] = ctrl
+
+    def advance(self, n: int) -> None:
+        """Advance n MuJoCo timesteps (n >= 1) with the controls held (:meth:`hold`): :meth:`step`'s checks."""
+        if not (isinstance(n, int) and n >= 1):
+            raise MujocoSimError(f"advance: n = {n!r} steps, expected an integer >= 1")
         m, d = self.model, self.data
-        before = [d.warning[w].number for w in _BAD]
-        t_start, qpos, qvel = d.time, d.qpos.copy(), d.qvel.copy()
-        t_end = d.time + n * self.timestep
-        for _ in range(n):
-            mujoco.mj_step(m, d)
+        before = self._warnings[_BAD_ROWS].tolist()
+        t_start = d.time
+        qpos, qvel = self._saved
+        np.copyto(qpos, d.qpos)
+        np.copyto(qvel, d.qvel)
+        t_end = t_start + n * self.timestep
+        mujoco.mj_step(m, d, n)
         # MuJoCo answers a non-finite or huge qpos/qvel/qacc with a warning and a reset of the data (time back to
         # 0), and a huge control with a warning and ctrl = 0: either way the run is no longer the one asked for.
-        hit = [w.name for w, b in zip(_BAD, before) if d.warning[w].number != b]
-        if hit or abs(d.time - t_end) > 1e-6 or not np.all(np.isfinite(d.qvel)):
+        after = self._warnings[_BAD_ROWS].tolist()
+        if after != before or abs(d.time - t_end) > 1e-6 or not np.isfinite(d.qvel).all():
+            hit = [w.name for w, b, a in zip(_BAD, before, after) if a != b]
             d.time, d.qpos[:], d.qvel[:] = t_start, qpos, qvel  # keep the last good state for the caller
             self._fresh = False
             raise MujocoSimError(f"MuJoCo: {', '.join(hit) or 'non-finite state'} in the step from "

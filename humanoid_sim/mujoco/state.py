@@ -20,7 +20,7 @@ Joints are matched by name, never by position.  Both joint coordinates are the U
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -32,7 +32,13 @@ from humanoid_sim.mujoco.model import MujocoModelError
 
 def _rotation_xyzw(quat_xyzw: np.ndarray) -> np.ndarray:
     """Rotation matrix (world <- base) of a unit quaternion given as (x, y, z, w); normalised first."""
-    x, y, z, w = (float(c) for c in quat_xyzw)
+    x, y, z, w = np.asarray(quat_xyzw, dtype=float).tolist()
+    return pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
+
+
+def _rotation_wxyz(quat_wxyz: np.ndarray) -> np.ndarray:
+    """:func:`_rotation_xyzw` of a quaternion given as (w, x, y, z) (MuJoCo's order)."""
+    w, x, y, z = np.asarray(quat_wxyz, dtype=float).tolist()
     return pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
 
 
@@ -42,6 +48,9 @@ class StateMap:
 
     ``pin_q``/``mj_q``: joint coordinate indices (pin_q[i] in q <-> mj_q[i] in qpos); ``pin_v``/``mj_v`` the same
     for velocities; ``pin_u``/``mj_u``: v index of the joint each actuator drives <-> actuator index.
+
+    Derived from them, each map as one gather: ``q = qpos[q_gather]`` (base position, quaternion reordered,
+    joints), ``v[3:] = qvel[v_gather][3:]`` (the base linear rows need the rotation), ``ctrl = tau[ctrl_gather]``.
     """
 
     nq: int
@@ -53,6 +62,27 @@ class StateMap:
     mj_v: np.ndarray
     pin_u: np.ndarray
     mj_u: np.ndarray
+    q_gather: np.ndarray = field(init=False, repr=False, compare=False)
+    v_gather: np.ndarray = field(init=False, repr=False, compare=False)
+    ctrl_gather: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        q_gather = np.full(self.nq, -1, dtype=np.intp)
+        q_gather[:7] = (0, 1, 2, 4, 5, 6, 3)          # p; quaternion (x, y, z, w) from MuJoCo's (w, x, y, z)
+        q_gather[self.pin_q] = self.mj_q
+        v_gather = np.full(self.nv, -1, dtype=np.intp)
+        v_gather[:6] = np.arange(6)                   # rows 0:3 are overwritten by the rotated base velocity
+        v_gather[self.pin_v] = self.mj_v
+        ctrl_gather = np.full(self.nu, -1, dtype=np.intp)
+        ctrl_gather[self.mj_u] = self.pin_u
+        for name, g, n in (("q", q_gather, self.nq), ("v", v_gather, self.nv)):
+            if sorted(g.tolist()) != list(range(n)):
+                raise MujocoModelError(f"StateMap: the {name} index maps are not a one-to-one map of {n} entries")
+        if ctrl_gather.min() < 0:
+            raise MujocoModelError(f"StateMap: the actuator map does not cover the {self.nu} actuators")
+        object.__setattr__(self, "q_gather", q_gather)
+        object.__setattr__(self, "v_gather", v_gather)
+        object.__setattr__(self, "ctrl_gather", ctrl_gather)
 
     @classmethod
     def from_models(cls, hm: HumanoidModel, mj: mujoco.MjModel) -> "StateMap":
@@ -104,13 +134,7 @@ class StateMap:
 
     def q_from_qpos(self, qpos: np.ndarray) -> np.ndarray:
         """Pinocchio q from MuJoCo qpos."""
-        qpos = self._check(qpos, self.nq, "qpos")
-        q = np.empty(self.nq)
-        q[:3] = qpos[:3]
-        q[3:6] = qpos[4:7]
-        q[6] = qpos[3]
-        q[self.pin_q] = qpos[self.mj_q]
-        return q
+        return self._check(qpos, self.nq, "qpos")[self.q_gather]
 
     # ------------------------------------------------------------------ velocity
     def qvel_from_v(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -126,12 +150,10 @@ class StateMap:
     def v_from_qvel(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
         """Pinocchio v from MuJoCo (qpos, qvel): base linear velocity rotated into the base frame."""
         qpos = self._check(qpos, self.nq, "qpos")
-        R = _rotation_xyzw(np.r_[qpos[4:7], qpos[3]])
+        R = _rotation_wxyz(qpos[3:7])
         qvel = self._check(qvel, self.nv, "qvel")
-        v = np.empty(self.nv)
+        v = qvel[self.v_gather]
         v[:3] = R.T @ qvel[:3]
-        v[3:6] = qvel[3:6]
-        v[self.pin_v] = qvel[self.mj_v]
         return v
 
     def a_from_qacc(self, q: np.ndarray, v: np.ndarray, qacc: np.ndarray) -> np.ndarray:
@@ -139,11 +161,9 @@ class StateMap:
         R = _rotation_xyzw(self._check(q, self.nq, "q")[3:7])
         v = self._check(v, self.nv, "v")
         qacc = self._check(qacc, self.nv, "qacc")
-        a = np.empty(self.nv)
+        a = qacc[self.v_gather]
         w, u = v[3:6], v[:3]
         a[:3] = R.T @ qacc[:3] - (w[1] * u[2] - w[2] * u[1], w[2] * u[0] - w[0] * u[2], w[0] * u[1] - w[1] * u[0])
-        a[3:6] = qacc[3:6]
-        a[self.pin_v] = qacc[self.mj_v]
         return a
 
     # ------------------------------------------------------------------ generalized forces
@@ -161,18 +181,13 @@ class StateMap:
         """Pinocchio generalized force from a MuJoCo one (e.g. ``qfrc_bias``, ``qfrc_constraint``)."""
         R = _rotation_xyzw(self._check(q, self.nq, "q")[3:7])
         qfrc = self._check(qfrc, self.nv, "qfrc")
-        tau = np.empty(self.nv)
+        tau = qfrc[self.v_gather]
         tau[:3] = R.T @ qfrc[:3]
-        tau[3:6] = qfrc[3:6]
-        tau[self.pin_v] = qfrc[self.mj_v]
         return tau
 
     def ctrl_from_tau(self, tau: np.ndarray) -> np.ndarray:
         """Motor controls (N m) from the joint rows of Pinocchio's tau; the base rows (0:6) are ignored."""
-        tau = self._check(tau, self.nv, "tau")
-        ctrl = np.empty(self.nu)
-        ctrl[self.mj_u] = tau[self.pin_u]
-        return ctrl
+        return self._check(tau, self.nv, "tau")[self.ctrl_gather]
 
     def tau_from_ctrl(self, ctrl: np.ndarray) -> np.ndarray:
         """Pinocchio generalized force (base rows 0) of the motor controls."""
