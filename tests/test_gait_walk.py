@@ -180,6 +180,22 @@ def test_hip_acceleration_is_the_derivative_of_the_velocity(zmp_sim3):
         assert checked >= 12
 
 
+def test_the_controllers_combined_queries_equal_the_interfaces(zmp_sim3):
+    """``hip_targets`` = (hip_reference, hip_acceleration) and ``toe_velocity`` = toe_reference's velocity, bit for
+    bit, on the zmp trajectory and on its chapter-3 trajectory, in every phase (lead-in, swings, double supports),
+    inside and outside each phase's window (clamped) and for the fixed foot."""
+    traj = zmp_sim3[1].traj
+    for tr in (traj, traj.inner):
+        for k, ph in enumerate(tr.phases):
+            for t in np.linspace(ph.t_start - 0.05, ph.t_end + 0.05, 13):
+                p, v6, R = tr.hip_reference(k, t)
+                got = tr.hip_targets(k, t)
+                for x, y in zip(got, (p, v6, R, tr.hip_acceleration(k, t))):
+                    assert np.array_equal(x, y)
+                for foot in ("R", "L"):
+                    assert np.array_equal(tr.toe_velocity(k, t, foot), tr.toe_reference(k, t, foot)[1])
+
+
 def test_lead_in_yaw_meets_the_thesis_yaw_and_rate(zmp_sim3):
     """The lead-in's yaw cubic ends where chapter 3's first single support starts, at its rate (1e-12: the same
     formulas, evaluated at the boundary)."""

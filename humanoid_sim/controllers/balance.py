@@ -160,6 +160,16 @@ def _pd(omega: float) -> tuple[float, float]:
     return omega * omega, 2.0 * omega
 
 
+def _own_trajectories() -> tuple[type, ...]:
+    from humanoid_sim.gait.zmp_walk import ZmpPreviewTrajectory
+    from humanoid_sim.trajectory import ReferenceTrajectory
+
+    return ReferenceTrajectory, ZmpPreviewTrajectory
+
+
+_OWN_TRAJECTORIES = _own_trajectories()
+
+
 @dataclass
 class _Targets:
     """One call's references (:meth:`BalanceController._targets`): the plan's time t (s); the hip's (position,
@@ -187,8 +197,8 @@ class _CompiledStage:
         work = (self.R, self.p, np.empty((nf, 3, 3)), np.empty((nf, 3)), np.empty((nf, 6, nv + 1)), np.empty((nf, 6)))
         self.tree_args = (tr.parents, tr.axis, tr.idx_q, tr.jR, tr.jp, tr.support, tr.fparent, tr.fR, tr.fp,
                           np.asarray(hm.theta_v_idx, dtype=np.int64), np.asarray(hm.theta_sign, dtype=float),
-                          np.asarray(hm.theta_q_idx, dtype=np.int64), np.ascontiguousarray(ctl.theta0, dtype=float),
-                          np.ones(nf, dtype=np.bool_)) + work
+                          np.asarray(hm.theta_q_idx, dtype=np.int64), np.ascontiguousarray(ctl.theta0, dtype=float))
+        self.work = work
         self.support = SupportKernel(hm, tr)
         self.kp, self.kd = float(ctl.dyn.gains.kp), float(ctl.dyn.gains.kd)
         self.contacts = {}
@@ -203,6 +213,16 @@ class _CompiledStage:
         self.heel_frames = {f: np.array([fi[FOOT_SPECS[f].toe_frame], fi[FOOT_SPECS[f].main_frame], 0],
                                         dtype=np.int64) for f in ("R", "L")}
         self.no_frames = np.zeros(3, dtype=np.int64)
+
+        def need(*frames: str) -> np.ndarray:      # the frames whose [J | drift] and velocity the call reads
+            out = np.zeros(nf, dtype=np.bool_)
+            out[[fi[f] for f in ("Pc_17", "O_17") + frames]] = True
+            return out
+
+        self.need = {(0, None): need()}
+        for f in ("R", "L"):
+            self.need[(1, f)] = need(TOE_POINT_FRAME[f], FOOT_SPECS[f].toe_frame, FOOT_SPECS[f].main_frame)
+            self.need[(2, f)] = need(FOOT_SPECS[f].main_frame)
         self.gains = np.array([*_pd(s.hip_omega), s.w_hip, *_pd(s.trunk_omega), s.w_trunk, *_pd(s.swing_omega),
                                s.w_swing, *_pd(s.posture_omega)], dtype=float)
         self.act_tables = actuator_tables(model, ctl.act)
@@ -334,6 +354,7 @@ class BalanceController:
         self._exact = self.act.component_map(ctx.q0)[1]
         self._exact_limits = self.act.limits[self._exact] * s.torque_margin
         self._box_kinds: dict[Phase, np.ndarray] = {}
+        self._sense: dict[tuple[int, int], np.ndarray] = {}   # DAQP's row kinds per (equalities, inequalities)
         self._stage = _CompiledStage(self) if self.compiled and _kernel.AVAILABLE else None
         self._kin_data = self.model.createData()
         self._tgt = np.zeros(51)
@@ -434,15 +455,25 @@ class BalanceController:
         s = self.settings
         k, phase = obs.k, obs.phase
         t = self._reference_time(obs)   # the plan's clock: it waits for a late touchdown
-        p_ref, v6_ref, R_ref = self.traj.hip_reference(k, t)
-        tg = _Targets(t=t, hip=(p_ref, v6_ref, R_ref, self.traj.hip_acceleration(k, t)))
-        info = self.traj.phases[k]
+        traj = self.traj
+        # the package's own trajectories answer the hip's two queries in one evaluation and the toe's velocity
+        # alone (the same numbers); any other (a user's, or a wrapper overriding a query) through the interface
+        own = type(traj) in _OWN_TRAJECTORIES
+        if own:
+            tg = _Targets(t=t, hip=traj.hip_targets(k, t))
+        else:
+            p_ref, v6_ref, R_ref = traj.hip_reference(k, t)
+            tg = _Targets(t=t, hip=(p_ref, v6_ref, R_ref, traj.hip_acceleration(k, t)))
+        info = traj.phases[k]
         if info.swing_foot is not None:
             foot = info.swing_foot
-            pt, v6, Rr = self.traj.toe_reference(k, t, foot)
+            pt, v6, Rr = traj.toe_reference(k, t, foot)
             hdt = s.ff_dt_s
-            a_ff = (self.traj.toe_reference(k, t + hdt, foot)[1] - self.traj.toe_reference(k, t - hdt, foot)[1]) \
-                / (2.0 * hdt)
+            if own:
+                a_ff = (traj.toe_velocity(k, t + hdt, foot) - traj.toe_velocity(k, t - hdt, foot)) / (2.0 * hdt)
+            else:
+                a_ff = (traj.toe_reference(k, t + hdt, foot)[1] - traj.toe_reference(k, t - hdt, foot)[1]) \
+                    / (2.0 * hdt)
             # the thesis's toe path starts with a step in acceleration (4-5 m/s^2, 3 rad/s^2 of yaw): its feed-forward
             # is ramped in over swing_ramp_s (smoothstep), or the swing leg's reaction jolts the stance foot
             xs = (t - info.t_start) / s.swing_ramp_s
@@ -601,13 +632,13 @@ class BalanceController:
             fi = st.heel_frames[foot]
             tgt[24] = ang
         else:
-            mode, fi = 0, st.no_frames
+            mode, fi, foot = 0, st.no_frames, None
         aR, ap, alock = st.support.anchor(phase, obs.anchors)
         welds, lock_q, lock_v, split_toe = st.contacts[phase]
         G, g, Ceq, beq, Cin, cop, M, Tx, Jc, X, lift0, pos_err, ori_err = balance_stage(
-            q, v, d.J, d.dJ, d.M, h, *st.tree_args, welds, aR, ap, lock_q, lock_v, alock, st.kp, st.kd, mode, fi, tgt,
-            st.gains, self._w_joint, s.heel_lift_rad, kinds, split_toe, *boxes, s.w_acc, s.w_force, s.w_torque,
-            unload)
+            q, v, d.J, d.dJ, d.M, h, *st.tree_args, st.need[(mode, foot)], *st.work, welds, aR, ap, lock_q, lock_v,
+            alock, st.kp, st.kd, mode, fi, tgt, st.gains, self._w_joint, s.heel_lift_rad, kinds, split_toe, *boxes,
+            s.w_acc, s.w_force, s.w_torque, unload)
         if mode == 1:
             self._lift_k, self._lift0 = k, lift0
         return G, g, Ceq, beq, Cin, cop, M, Tx, Jc, X, h, (d, st, pos_err, ori_err)
@@ -693,17 +724,20 @@ class BalanceController:
         dense QPs, exact to its tolerances); relaxed (CoP rows dropped, then every inequality) when DAQP reports no
         optimum (an infeasible set of constraints: the state is beyond what the soles can carry)."""
         meq = len(beq)
-        A_all = np.vstack([Ceq, Cin])
-        lo_all = np.concatenate([beq, bin_])
-        hi_all = np.concatenate([beq, np.full(len(bin_), _DAQP_INF)])
+        A_all = np.concatenate((Ceq, Cin))
+        lo_all = np.concatenate((beq, bin_))
+        hi_all = lo_all.copy()
+        hi_all[meq:] = _DAQP_INF
+        sense_all = self._sense.get((meq, len(bin_)))
+        if sense_all is None:
+            sense_all = self._sense[(meq, len(bin_))] = np.zeros(meq + len(bin_), dtype=np.int32)
+            sense_all[:meq] = _DAQP_EQUALITY
         for level, keep in ((0, None), (1, ~cop_rows), (2, np.zeros(len(bin_), bool))):
             if keep is None:
-                A, lo, hi = A_all, lo_all, hi_all
+                A, lo, hi, sense = A_all, lo_all, hi_all, sense_all
             else:
                 rows = np.concatenate([np.ones(meq, dtype=bool), keep])
-                A, lo, hi = A_all[rows], lo_all[rows], hi_all[rows]
-            sense = np.zeros(len(lo), dtype=np.int32)
-            sense[:meq] = _DAQP_EQUALITY
+                A, lo, hi, sense = A_all[rows], lo_all[rows], hi_all[rows], sense_all[rows]
             x, _, flag, _ = self._daqp(G, -g, A, hi, lo, sense)
             if flag != _DAQP_OPTIMAL:
                 continue

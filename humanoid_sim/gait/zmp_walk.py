@@ -224,6 +224,28 @@ class ZmpPreviewTrajectory:
             yawdd = self.inner.hip_acceleration(k - 1, t - self.lead)[5]
         return np.array((a[0], a[1], 0.0, 0.0, 0.0, yawdd))
 
+    def hip_targets(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`hip_reference` and :meth:`hip_acceleration` at one time from one evaluation: position (3,),
+        velocity (6,), orientation (3x3), acceleration (6,); the same numbers."""
+        k = self._check(phase)
+        tc = self._clamp(k, t)
+        p, v, a = self._hip(tc)
+        if k == 0:
+            yaw, yawd, yawdd = eval_cubic(self._lead_yaw, tc - self.phases[0].t_start)
+        else:
+            inner = self.inner
+            ph, sg, tci = inner._clamped(k - 1, t - self.lead)
+            yaw, yawd, yawdd = inner._hip_scalars(ph, sg, tci)[4:]
+        return (p, np.array((v[0], v[1], 0.0, 0.0, 0.0, yawd)), _rz(yaw),
+                np.array((a[0], a[1], 0.0, 0.0, 0.0, yawdd)))
+
+    def toe_velocity(self, phase: int, t: float, foot: str) -> np.ndarray:
+        """:meth:`toe_reference`'s velocity (6,) alone; the same numbers."""
+        k = self._check(phase)
+        if k == 0:
+            return np.zeros(6)
+        return self.inner.toe_velocity(k - 1, t - self.lead, foot)
+
     def toe_reference(self, phase: int, t: float, foot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         k = self._check(phase)
         if k == 0:

@@ -443,6 +443,36 @@ class ReferenceTrajectory:
         return np.array((R * thdd * cp - s * R * thd * thd * sp, R * thdd * sp + s * R * thd * thd * cp, 0.0,
                          0.0, 0.0, yawdd))
 
+    def hip_targets(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`hip_reference` and :meth:`hip_acceleration` at one time from one evaluation: position (3,),
+        velocity (6,), orientation (3x3), acceleration (6,); the same numbers."""
+        ph, sg, tc = self._clamped(phase, t)
+        sp, cp, thd, thdd, yaw, yawd, yawdd = self._hip_scalars(ph, sg, tc)
+        R, s = sg.R, sg.s
+        p = np.array((sg.Ox + s * R * sp, sg.Oy - s * R * cp, self.hip_z))
+        v6 = np.array((R * thd * cp, R * thd * sp, 0.0, 0.0, 0.0, yawd))
+        a6 = np.array((R * thdd * cp - s * R * thd * thd * sp, R * thdd * sp + s * R * thd * thd * cp, 0.0,
+                       0.0, 0.0, yawdd))
+        return p, v6, _rz(yaw), a6
+
+    def toe_velocity(self, phase: int, t: float, foot: str) -> np.ndarray:
+        """:meth:`toe_reference`'s velocity (6,) alone; the same numbers."""
+        ph, sg, tc = self._clamped(phase, t)
+        if self._feet[phase][foot][0] == "fix":
+            return np.zeros(6)
+        w = sg.swing
+        s = sg.s
+        if tc <= w.t_z:
+            r, rd, _ = eval_cubic(w.g, tc)
+        else:
+            r, rd = w.R_f, 0.0
+        rot, rotd, _ = eval_cubic(w.f, tc)
+        zd = eval_quartic(w.h, tc)[1]
+        phi = sg.theta_cs + s * (w.theta_i + rot)
+        sp, cp = math.sin(phi), math.cos(phi)
+        return np.array((s * rd * sp + r * rotd * cp, -s * rd * cp + r * rotd * sp, zd, 0.0, 0.0,
+                         eval_cubic(w.j, tc)[1]))
+
     def toe_reference(self, phase: int, t: float, foot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The controller's swing query: toe point (3,), [toe-point velocity; foot angular velocity] (6,) and
         toe-body orientation (3x3) of ``foot`` ("R"/"L") at global time t clamped to ``phase``."""
