@@ -293,3 +293,22 @@ def test_an_unreachable_scheduler_exits_2_with_nothing_written(tmp_path, capsys,
     err = capsys.readouterr().err
     assert f"humanoid-sweep: error: cannot reach the scheduler at tcp://127.0.0.1:{port}: " in err
     assert not out.exists()
+
+
+def test_the_sweep_builds_each_kernel_part_set_its_walks_need_once(monkeypatch):
+    """The shipped speed/step sweep crosses both gaits: before the local workers start, the CLI builds the thesis
+    controller's parts for one thesis-gait walk and the balance controller's for one zmp walk, and nothing when
+    numba's cache already holds them."""
+    from humanoid_sim.kernel import build
+
+    walks = load_sweep(ROOT / "scripts" / "sweeps" / "speed_step.yaml").expand()
+    calls = []
+    monkeypatch.setattr(build, "cache_ready", lambda parts=build.PARTS: False)
+    monkeypatch.setattr(build, "build", lambda path, parts: calls.append(
+        (parts, parse_scenario(yaml.safe_load(Path(path).read_text()), "x").gait.hip_reference)))
+    cli._build_kernel(walks)
+    assert sorted(calls) == sorted([(build.PARTS, "thesis"), (build.BALANCE_PARTS, "zmp_preview")])
+    calls.clear()
+    monkeypatch.setattr(build, "cache_ready", lambda parts=build.PARTS: True)
+    cli._build_kernel(walks)
+    assert calls == []

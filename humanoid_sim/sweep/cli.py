@@ -150,19 +150,45 @@ def _shape(spec) -> str:
     return " x ".join(parts)
 
 
+def _build_kernel(to_run) -> None:
+    """Fill numba's cache of the compiled parts the walks call (the thesis controller's stages, the balance
+    controller's QP path, or both) once, here, before the local workers start: otherwise each worker compiles them
+    itself, all at once.  A failed build is reported and left to the workers."""
+    from humanoid_sim import kernel
+
+    if not kernel.AVAILABLE:
+        return
+    import tempfile
+
+    import yaml
+
+    from humanoid_sim.kernel import build
+    from humanoid_sim.scenario import parse_scenario
+
+    needed: dict[tuple[str, ...], dict] = {}
+    for w in to_run:
+        needed.setdefault(build.parts_for(parse_scenario(w.doc, "<sweep walk>")), w.doc)
+    missing = {parts: doc for parts, doc in needed.items() if not build.cache_ready(parts)}
+    if not missing:
+        return
+    print(f"{PROG}: compiling the simulation kernel (first run after an install or an edit of "
+          "humanoid_sim/kernel/compiled.py: ~20 s, cached for later runs)", file=sys.stderr)
+    with tempfile.TemporaryDirectory(prefix="humanoid_sweep_build_") as tmp:
+        for i, (parts, doc) in enumerate(missing.items()):
+            path = Path(tmp) / f"walk{i}.yaml"
+            path.write_text(yaml.safe_dump(doc))
+            try:
+                build.build(path, parts)
+            except build.KernelBuildError as exc:
+                print(f"{PROG}: warning: {exc}; the workers compile it instead", file=sys.stderr)
+
+
 def _run(args: argparse.Namespace, spec, to_run, engine: str, out: Path, sink, workers: int):
     """Start or reach the cluster, write the scenario files, run the walks; the RunStats, or an exit status."""
     from humanoid_sim.sweep import runner
 
-    if args.scheduler is None and engine == "pinocchio":
-        from humanoid_sim import kernel
-
-        if kernel.AVAILABLE and not kernel.cache_present():  # compile once here, not in every worker at once
-            print(f"{PROG}: compiling the simulation kernel (first run after an install or an edit of "
-                  "humanoid_sim/kernel/compiled.py: up to a minute, cached for later runs)", file=sys.stderr)
-            from humanoid_sim.sweep.walk import warm_up
-
-            warm_up(engine, to_run[0].doc)
+    if args.scheduler is None and engine in ("pinocchio", "mujoco"):
+        _build_kernel(to_run)
     with contextlib.ExitStack() as stack:
         try:
             client = stack.enter_context(runner.dask_client(workers=workers if args.scheduler is None else None,
