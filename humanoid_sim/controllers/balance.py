@@ -227,6 +227,8 @@ class _CompiledStage:
                                s.w_swing, *_pd(s.posture_omega)], dtype=float)
         self.act_tables = actuator_tables(model, ctl.act)
         self.frame_buffers = (work[2], work[3], work[5])      # fR, fpos, vel as balance_stage leaves them
+        self.jcols, self.jsign = self.tree_args[9], self.tree_args[10]
+        self.bounded = np.flatnonzero(ctl._exact).astype(np.int64)  # the T components the QP bounds linearly
 
 
 def qp_numpy(A: np.ndarray, w: np.ndarray, b: np.ndarray, M_upper: np.ndarray, h: np.ndarray, J: np.ndarray,
@@ -354,7 +356,8 @@ class BalanceController:
         self._exact = self.act.component_map(ctx.q0)[1]
         self._exact_limits = self.act.limits[self._exact] * s.torque_margin
         self._box_kinds: dict[Phase, np.ndarray] = {}
-        self._sense: dict[tuple[int, int], np.ndarray] = {}   # DAQP's row kinds per (equalities, inequalities)
+        self._sense: dict[tuple[int, int], np.ndarray] = {}
+        self._boxes: dict[bool, tuple[np.ndarray, ...]] = {}      # heel, toe, whole-sole rows; by double support   # DAQP's row kinds per (equalities, inequalities)
         self._stage = _CompiledStage(self) if self.compiled and _kernel.AVAILABLE else None
         self._kin_data = self.model.createData()
         self._tgt = np.zeros(51)
@@ -395,12 +398,15 @@ class BalanceController:
             for i, frame in enumerate(welds):
                 if frame in _TOE_FRAMES:
                     unload[i] = s.w_unload * u * u
-        sole = self.sole
-        jx, _, jz = sole.toe_joint
-        margin = s.cop_margin_dsp_m if phase.is_double_support else s.cop_margin_ssp_m
-        boxes = (self._box_rows(sole.heel_back_x, jx, sole.sole_z, margin),
-                 self._box_rows(0.0, sole.toe_front_x - jx, sole.sole_z - jz, margin),
-                 self._box_rows(sole.heel_back_x, sole.toe_front_x, sole.sole_z, margin))
+        boxes = self._boxes.get(phase.is_double_support)
+        if boxes is None:
+            sole = self.sole
+            jx, _, jz = sole.toe_joint
+            margin = s.cop_margin_dsp_m if phase.is_double_support else s.cop_margin_ssp_m
+            boxes = self._boxes[phase.is_double_support] = (
+                self._box_rows(sole.heel_back_x, jx, sole.sole_z, margin),
+                self._box_rows(0.0, sole.toe_front_x - jx, sole.sole_z - jz, margin),
+                self._box_rows(sole.heel_back_x, sole.toe_front_x, sole.sole_z, margin))
         build = self._qp_compiled if self._stage is not None else self._qp_reference
         G, g, Ceq, beq, Cin, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, boxes, unload)
         nv, m = self.nv, Jc.shape[0]
@@ -415,8 +421,8 @@ class BalanceController:
         x = None
         if s.lazy_torque_limits:
             x, level = self._solve(G, g, Ceq, beq, Cin, bin_, cop_rows)
-            a, lam, tau, T_cmd = self._finish(x, M, h, Jc, q, v, kin)
-            if np.any(np.abs(T_cmd[self._exact]) > self._exact_limits):
+            a, lam, tau, T_cmd, over = self._finish(x, M, h, Jc, q, v, kin)
+            if over:
                 x = None
         if x is None:
             self.torque_rows += 1
@@ -427,7 +433,7 @@ class BalanceController:
             x, level = self._solve(G, g, Ceq, beq, np.vstack([Cin, -PT, PT]),
                                    np.concatenate([bin_, Ph - lim, -Ph - lim]),
                                    np.concatenate([cop_rows, np.zeros(2 * len(lim), dtype=bool)]))
-            a, lam, tau, T_cmd = self._finish(x, M, h, Jc, q, v, kin)
+            a, lam, tau, T_cmd, _ = self._finish(x, M, h, Jc, q, v, kin)
         T_sat, sat = self.act.saturate(T_cmd)
         extra = {"balance_level": level, "box_wrenches": {}}
         j = 0
@@ -445,7 +451,7 @@ class BalanceController:
             # what the weld engine logs at a stage (``stage.StageOutput`` layout): the compiled path does not leave
             # the engine's shared Pinocchio data at this state, as the reference path's prepare does
             extra["kernel_log"] = self._log
-        return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=self._Jpost @ a,
+        return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=self._thdd,
                        motion=(a, lam), motion_model=self.weld, extra=extra)
 
     def _targets(self, obs: Observation) -> "_Targets":
@@ -648,15 +654,18 @@ class BalanceController:
         """(a, lam, tau, T_cmd) of a QP solution: tau = M a + h - Jc^T lam (base rows zero) and its thesis torques."""
         d, st, pos_err, ori_err = kin
         if st is not None:
-            a, lam, tau, T, self._log = balance_finish(x, M, h, Jc, d.J, d.dJ, v, st.R, st.p, st.tree.support,
-                                                       *st.act_tables, pos_err, ori_err, *st.frame_buffers)
-            return a, lam, tau, T
+            a, lam, tau, T, self._log, self._thdd, over = balance_finish(
+                x, M, h, Jc, d.J, d.dJ, v, st.R, st.p, st.tree.support, *st.act_tables, pos_err, ori_err,
+                *st.frame_buffers, st.jcols, st.jsign, st.bounded, self._exact_limits)
+            return a, lam, tau, T, over
         nv, m = self.nv, Jc.shape[0]
         a, lam = x[:nv], x[nv:nv + m]
         tau = M @ a + h - Jc.T @ lam
         tau[:6] = 0.0
         self._log = None
-        return a, lam, tau, self.act.thesis_torques(q, v, a, tau, kin_data=d)
+        self._thdd = self._Jpost @ a
+        T = self.act.thesis_torques(q, v, a, tau, kin_data=d)
+        return a, lam, tau, T, bool(np.any(np.abs(T[self._exact]) > self._exact_limits))
 
     def _task_rows(self, k: int, phase: Phase) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Work buffers (A (rows x nv), b (rows,), w (rows,)) for one call's tasks, every row written by the call:

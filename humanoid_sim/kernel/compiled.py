@@ -1405,11 +1405,12 @@ def balance_stage(q, v, J, dJ, M_upper, h, parents, axis, idx_q, jR, jp, support
 
 @njit
 def balance_finish(x, M, h, Jc, J, dJ, v, R, p, support, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity,
-                   pos_err, ori_err, fR, fpos, vel):
-    """(a, lam, tau, T, log) of the balance controller's QP solution x = [a; lam; ...]: tau = M a + h - Jc^T lam with
-    the base rows zeroed, T the thesis actuator torques (:func:`_thesis_torques`), and the stage log the weld engine
-    records (layout ``stage.StageOutput``: weld errors, dynamics residual, task frames).  R, p, fR, fpos, vel: what
-    :func:`balance_stage` left in its buffers; pos_err, ori_err: what it returned."""
+                   pos_err, ori_err, fR, fpos, vel, jcols, jsign, bounded, bounds):
+    """(a, lam, tau, T, log, theta_ddot, over) of the balance controller's QP solution x = [a; lam; ...]: tau = M a +
+    h - Jc^T lam with the base rows zeroed, T the thesis actuator torques (:func:`_thesis_torques`), the stage log the
+    weld engine records (layout ``stage.StageOutput``: weld errors, dynamics residual, task frames), the thesis joint
+    accelerations (jsign * a[jcols]) and whether a bounded component T[bounded[i]] exceeds bounds[i] in magnitude.
+    R, p, fR, fpos, vel: what :func:`balance_stage` left in its buffers; pos_err, ori_err: what it returned."""
     nv = v.size
     m = Jc.shape[0]
     a = np.empty(nv)
@@ -1432,4 +1433,11 @@ def balance_finish(x, M, h, Jc, J, dJ, v, R, p, support, g1, g3, gs, hj, arm_mas
     _put(log, 22, fpos[F_TPL])
     _put_flat(log, 25, fR[F_O1])
     _put_flat(log, 34, fR[F_O2])
-    return a, lam, tau, T, log
+    thdd = np.empty(jcols.size)
+    for i in range(jcols.size):
+        thdd[i] = jsign[i] * a[jcols[i]]
+    over = False
+    for i in range(bounded.size):
+        if abs(T[bounded[i]]) > bounds[i]:
+            over = True
+    return a, lam, tau, T, log, thdd, over
