@@ -971,6 +971,19 @@ def _a_desired(qdd: np.ndarray, jcols: np.ndarray, jsign: np.ndarray, nv: int) -
 
 
 @njit
+def _log_frames(log: np.ndarray, fR: np.ndarray, fpos: np.ndarray, vel: np.ndarray) -> None:
+    """The task frames a stage log records (``stage.StageOutput`` layout, entries 4-42): the hip CoM and its
+    velocity, Body 17's orientation, both toe points, both toe bodies' orientations."""
+    _put(log, 4, fpos[F_PC17])
+    _put(log, 7, vel[F_PC17][:3])
+    _put_flat(log, 10, fR[F_O17])
+    _put(log, 19, fpos[F_TPR])
+    _put(log, 22, fpos[F_TPL])
+    _put_flat(log, 25, fR[F_O1])
+    _put_flat(log, 34, fR[F_O2])
+
+
+@njit
 def _finish(J, dJ, v, qdd, M, h, Jc, a, tau, lam, pos_err, ori_err, R, p, fR, fpos, vel, support, g1, g3, gs, hj,
             arm_mass, arm_lever, arm_I, gravity, limits, a_out, lam_out, T_out, tau_out, log) -> None:
     """The thesis torques T, the saturation flag, the dynamics residual and the logged quantities of a stage."""
@@ -983,13 +996,7 @@ def _finish(J, dJ, v, qdd, M, h, Jc, a, tau, lam, pos_err, ori_err, R, p, fR, fp
         log[0] = -1.0  # a normal matrix or KKT system was singular: the reference path reports it
     res = mv(M, a) + h - tau - mtv(Jc, lam)
     log[1], log[2], log[3] = pos_err, ori_err, np.max(np.abs(res))
-    _put(log, 4, fpos[F_PC17])
-    _put(log, 7, vel[F_PC17][:3])
-    _put_flat(log, 10, fR[F_O17])
-    _put(log, 19, fpos[F_TPR])
-    _put(log, 22, fpos[F_TPL])
-    _put_flat(log, 25, fR[F_O1])
-    _put_flat(log, 34, fR[F_O2])
+    _log_frames(log, fR, fpos, vel)
     _put(a_out, 0, a)
     _put(lam_out, 0, lam)
     _put(T_out, 0, T)
@@ -1426,13 +1433,7 @@ def balance_finish(x, M, h, Jc, J, dJ, v, R, p, support, g1, g3, gs, hj, arm_mas
     log = np.zeros(LOG_SIZE)
     res = mv(M, a) + h - tau - mtv(Jc, lam)
     log[1], log[2], log[3] = pos_err, ori_err, np.max(np.abs(res))
-    _put(log, 4, fpos[F_PC17])
-    _put(log, 7, vel[F_PC17][:3])
-    _put_flat(log, 10, fR[F_O17])
-    _put(log, 19, fpos[F_TPR])
-    _put(log, 22, fpos[F_TPL])
-    _put_flat(log, 25, fR[F_O1])
-    _put_flat(log, 34, fR[F_O2])
+    _log_frames(log, fR, fpos, vel)
     thdd = np.empty(jcols.size)
     for i in range(jcols.size):
         thdd[i] = jsign[i] * a[jcols[i]]
