@@ -68,6 +68,9 @@ class _Both:
                            abs(lg[2] - float(np.max(rows.weld_orientation_error))))
             assert lg[3] < 1e-6      # the base rows of the dynamics hold (the QP's equalities)
         assert c1.extra["balance_level"] == c0.extra["balance_level"]
+        # the compiled finish's limit check (which skips Actuators.saturate) against the limits themselves
+        assert self.fast._inside == bool(np.all(np.abs(c1.T_cmd) <= self.fast.act.limits))
+        np.testing.assert_array_equal(c1.saturated, c0.saturated)
         assert self.fast._lift_k == self.ref._lift_k and self.fast._lift0 == pytest.approx(self.ref._lift0, abs=1e-12)
         return c1
 

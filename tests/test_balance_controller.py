@@ -245,6 +245,30 @@ def test_lazy_torque_limits_give_the_full_qps_optimum(hm, sc, state):
     assert np.max(np.abs(cl.T_cmd[exact]) - bound) > -1e-4   # and one of them sits on its bound
 
 
+def test_saturation_of_the_compiled_path_is_the_actuators(hm, sc, state):
+    """A command whose thesis torques break an actuator limit is clipped as ``Actuators.saturate`` clips it, on the
+    compiled path (whose finish checks the limits and skips ``saturate`` when nothing binds) and the reference."""
+    sim, obs = state
+    cmds = []
+    for compiled in (True, False):
+        ctl = BalanceController(compiled=compiled)
+        ctl.setup(ControlContext(hm, sc, sim.traj, sim.q0, sim.engine.name, sim.engine.constraints))
+        T = ctl(obs).T_cmd
+        # limits at 0.8 |T| on the five largest components (and the rest untouched): those five must clip
+        big = np.argsort(-np.abs(T))[:5]
+        ctl.act.limits = ctl.act.limits.copy()
+        ctl.act.limits[big] = 0.8 * np.abs(T[big])
+        ctl._exact_limits = ctl.act.limits[ctl._exact] * 10.0    # the QP's own limit rows far away: T stays
+        cmd = ctl(obs)
+        expect_T, expect_sat = ctl.act.saturate(cmd.T_cmd)
+        np.testing.assert_array_equal(cmd.saturated, expect_sat)
+        np.testing.assert_array_equal(cmd.T, expect_T)
+        assert set(np.flatnonzero(cmd.saturated)) == set(big)
+        cmds.append(cmd)
+    # the two paths' torques agree to DAQP's round-off (1e-8 N m, as tests/test_balance_compiled.py measures)
+    np.testing.assert_allclose(cmds[0].T, cmds[1].T, rtol=0, atol=1e-8)
+
+
 def test_zmp_walk_is_feasible_on_welded_feet(hm, sc):
     """Issue #13's acceptance on sim 3 with only the gait lines added, judged by the contact audit."""
     sim = Simulator(hm, sc)
@@ -275,9 +299,9 @@ def test_the_qp_optimum_is_quadprogs(state, monkeypatch):
     seen = []
     original = ctl._solve
 
-    def spy(G, g, Ceq, beq, Cin, bin_, cop_rows):
-        out = original(G, g, Ceq, beq, Cin, bin_, cop_rows)
-        seen.append((G, g, Ceq, beq, Cin, bin_, out))
+    def spy(G, g, C, lo, ne, cop_rows):
+        out = original(G, g, C, lo, ne, cop_rows)
+        seen.append((G, g, C[:ne], lo[:ne], C[ne:], lo[ne:], out))
         return out
 
     monkeypatch.setattr(ctl, "_solve", spy)

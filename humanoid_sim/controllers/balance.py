@@ -82,6 +82,7 @@ Units: SI (m, rad, N, N m, s).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -101,6 +102,8 @@ _DAQP_EQUALITY = 5        # DAQP's constraint sense: an equality row
 _DAQP_OPTIMAL = 1         # DAQP's exit flag of an optimal solution
 _FOOT_OF_MAIN = {spec.main_frame: foot for foot, spec in FOOT_SPECS.items()}   # O_3 -> R, O_4 -> L
 _TOE_FRAMES = {spec.toe_frame for spec in FOOT_SPECS.values()}                  # O_1, O_2
+_NO_SATURATION = np.zeros(26, dtype=bool)                                       # shared: read-only
+_NO_SATURATION.flags.writeable = False
 
 
 @dataclass(frozen=True)
@@ -180,6 +183,39 @@ class _Targets:
     hip: tuple
     swing: tuple | None = None
     heel: tuple | None = None
+
+
+class BoxWrenches(Mapping):
+    """A command's ground wrenches per flat foot's box, computed when read (``Command.extra["box_wrenches"]``):
+    {main-body weld frame: (heel-box wrench W_m in the main-body frame, toe-box wrench W_t in the toe-body frame)},
+    [f; n] (N, N m) at each frame's origin, W_m = lam_weld - X W_t.  ``x``: the QP's solution [a (nv); lam (m); W_t
+    (6 per flat foot)]; ``X``: per flat foot, the toe-to-main wrench map; ``kinds``: per weld, 0 for a flat foot."""
+
+    def __init__(self, x: np.ndarray, X: np.ndarray, kinds: np.ndarray, welds: tuple[str, ...], nv: int,
+                 m: int) -> None:
+        self._args = (x, X, kinds, welds, nv, m)
+        self._map: dict[str, tuple[np.ndarray, np.ndarray]] | None = None
+
+    def _items(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        if self._map is None:
+            x, X, kinds, welds, nv, m = self._args
+            out, j = {}, 0
+            for i, kind in enumerate(kinds):
+                if kind == 0:
+                    Wt = x[nv + m + 6 * j:nv + m + 6 * j + 6].copy()
+                    out[welds[i]] = (x[nv + 6 * i:nv + 6 * i + 6] - X[j] @ Wt, Wt)
+                    j += 1
+            self._map = out
+        return self._map
+
+    def __getitem__(self, frame: str) -> tuple[np.ndarray, np.ndarray]:
+        return self._items()[frame]
+
+    def __iter__(self):
+        return iter(self._items())
+
+    def __len__(self) -> int:
+        return len(self._items())
 
 
 class _CompiledStage:
@@ -356,8 +392,8 @@ class BalanceController:
         self._exact = self.act.component_map(ctx.q0)[1]
         self._exact_limits = self.act.limits[self._exact] * s.torque_margin
         self._box_kinds: dict[Phase, np.ndarray] = {}
-        self._sense: dict[tuple[int, int], np.ndarray] = {}
-        self._boxes: dict[bool, tuple[np.ndarray, ...]] = {}      # heel, toe, whole-sole rows; by double support   # DAQP's row kinds per (equalities, inequalities)
+        self._bounds: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}   # DAQP's row kinds, upper bounds
+        self._boxes: dict[bool, tuple[np.ndarray, ...]] = {}      # heel, toe, whole-sole rows; by double support
         self._stage = _CompiledStage(self) if self.compiled and _kernel.AVAILABLE else None
         self._kin_data = self.model.createData()
         self._tgt = np.zeros(51)
@@ -408,9 +444,8 @@ class BalanceController:
                 self._box_rows(0.0, sole.toe_front_x - jx, sole.sole_z - jz, margin),
                 self._box_rows(sole.heel_back_x, sole.toe_front_x, sole.sole_z, margin))
         build = self._qp_compiled if self._stage is not None else self._qp_reference
-        G, g, Ceq, beq, Cin, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, boxes, unload)
+        G, g, C, lo, ne, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, boxes, unload)
         nv, m = self.nv, Jc.shape[0]
-        bin_ = np.zeros(len(cop_rows))
 
         # actuator limits |T| <= limit for the components linear in tau (T = P tau, tau = Tx x + h).  They rarely
         # bind (only the toes' 30 N m, in 0-14 of the ~1600-3200 calls of each shipped zmp walk on welds), so by
@@ -420,7 +455,7 @@ class BalanceController:
         # the component map is not needed
         x = None
         if s.lazy_torque_limits:
-            x, level = self._solve(G, g, Ceq, beq, Cin, bin_, cop_rows)
+            x, level = self._solve(G, g, C, lo, ne, cop_rows)
             a, lam, tau, T_cmd, over = self._finish(x, M, h, Jc, q, v, kin)
             if over:
                 x = None
@@ -430,19 +465,15 @@ class BalanceController:
             P, lim = P[self._exact], self._exact_limits
             PT = P[:, 6:] @ Tx
             Ph = P[:, 6:] @ h[6:]
-            x, level = self._solve(G, g, Ceq, beq, np.vstack([Cin, -PT, PT]),
-                                   np.concatenate([bin_, Ph - lim, -Ph - lim]),
+            x, level = self._solve(G, g, np.vstack([C, -PT, PT]), np.concatenate([lo, Ph - lim, -Ph - lim]), ne,
                                    np.concatenate([cop_rows, np.zeros(2 * len(lim), dtype=bool)]))
             a, lam, tau, T_cmd, _ = self._finish(x, M, h, Jc, q, v, kin)
-        T_sat, sat = self.act.saturate(T_cmd)
-        extra = {"balance_level": level, "box_wrenches": {}}
-        j = 0
-        for i, kind in enumerate(kinds):
-            if kind == 0:
-                Wt = x[nv + m + 6 * j:nv + m + 6 * j + 6].copy()
-                extra["box_wrenches"][welds[i]] = (lam[6 * i:6 * i + 6] - X[j] @ Wt, Wt)
-                j += 1
-        if sat.any():
+        if self._inside:          # the compiled finish checked the limits: nothing to clip (the usual case)
+            T_sat, sat = T_cmd.copy(), _NO_SATURATION
+        else:
+            T_sat, sat = self.act.saturate(T_cmd)
+        extra = {"balance_level": level, "box_wrenches": BoxWrenches(x, X, kinds, welds, nv, m)}
+        if sat is not _NO_SATURATION and sat.any():
             B = self.act.torque_map(q, kin[0])
             tau = tau + B @ (T_sat - T_cmd)
             tau[:6] = 0.0
@@ -606,7 +637,9 @@ class BalanceController:
                        np.array([sp[1] for sp in splits], dtype=np.int64), X,
                        np.array([sp[3] for sp in splits]).reshape(ns, 6), *boxes, s.w_acc, s.w_force, s.w_torque,
                        unload)
-        return out + (rows.J, X, h, (d, None, 0.0, 0.0))
+        G, g, Ceq, beq, Cin, cop, M, Tx = out       # stacked as the compiled balance_qp gives them (DAQP's form)
+        return (G, g, np.vstack([Ceq, Cin]), np.concatenate([beq, np.zeros(len(Cin))]), len(beq), cop, M, Tx, rows.J,
+                X, h, (d, None, 0.0, 0.0))
 
     def _qp_compiled(self, obs: Observation, tg: "_Targets", kinds: np.ndarray, boxes: tuple,
                      unload: np.ndarray) -> tuple:
@@ -641,28 +674,29 @@ class BalanceController:
             mode, fi, foot = 0, st.no_frames, None
         aR, ap, alock = st.support.anchor(phase, obs.anchors)
         welds, lock_q, lock_v, split_toe = st.contacts[phase]
-        G, g, Ceq, beq, Cin, cop, M, Tx, Jc, X, lift0, pos_err, ori_err = balance_stage(
+        G, g, C, lo, ne, cop, M, Tx, Jc, X, lift0, pos_err, ori_err = balance_stage(
             q, v, d.J, d.dJ, d.M, h, *st.tree_args, st.need[(mode, foot)], *st.work, welds, aR, ap, lock_q, lock_v,
             alock, st.kp, st.kd, mode, fi, tgt, st.gains, self._w_joint, s.heel_lift_rad, kinds, split_toe, *boxes,
             s.w_acc, s.w_force, s.w_torque, unload)
         if mode == 1:
             self._lift_k, self._lift0 = k, lift0
-        return G, g, Ceq, beq, Cin, cop, M, Tx, Jc, X, h, (d, st, pos_err, ori_err)
+        return G, g, C, lo, ne, cop, M, Tx, Jc, X, h, (d, st, pos_err, ori_err)
 
     def _finish(self, x: np.ndarray, M: np.ndarray, h: np.ndarray, Jc: np.ndarray, q: np.ndarray, v: np.ndarray,
                 kin: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(a, lam, tau, T_cmd) of a QP solution: tau = M a + h - Jc^T lam (base rows zero) and its thesis torques."""
         d, st, pos_err, ori_err = kin
         if st is not None:
-            a, lam, tau, T, self._log, self._thdd, over = balance_finish(
+            a, lam, tau, T, self._log, self._thdd, over, self._inside = balance_finish(
                 x, M, h, Jc, d.J, d.dJ, v, st.R, st.p, st.tree.support, *st.act_tables, pos_err, ori_err,
-                *st.frame_buffers, st.jcols, st.jsign, st.bounded, self._exact_limits)
+                *st.frame_buffers, st.jcols, st.jsign, st.bounded, self._exact_limits, self.act.limits)
             return a, lam, tau, T, over
         nv, m = self.nv, Jc.shape[0]
         a, lam = x[:nv], x[nv:nv + m]
         tau = M @ a + h - Jc.T @ lam
         tau[:6] = 0.0
         self._log = None
+        self._inside = False      # (unknown: Actuators.saturate decides)
         self._thdd = self._Jpost @ a
         T = self.act.thesis_torques(q, v, a, tau, kin_data=d)
         return a, lam, tau, T, bool(np.any(np.abs(T[self._exact]) > self._exact_limits))
@@ -728,26 +762,26 @@ class BalanceController:
         rows.flags.writeable = False           # cached (the sole and the margins are fixed): read-only
         return rows
 
-    def _solve(self, G, g, Ceq, beq, Cin, bin_, cop_rows) -> tuple[np.ndarray, int]:
-        """min 1/2 x^T G x - g^T x  s.t.  Ceq x = beq, Cin x >= bin_ (DAQP: a dual active-set method for small
-        dense QPs, exact to its tolerances); relaxed (CoP rows dropped, then every inequality) when DAQP reports no
-        optimum (an infeasible set of constraints: the state is beyond what the soles can carry)."""
-        meq = len(beq)
-        A_all = np.concatenate((Ceq, Cin))
-        lo_all = np.concatenate((beq, bin_))
-        hi_all = lo_all.copy()
-        hi_all[meq:] = _DAQP_INF
-        sense_all = self._sense.get((meq, len(bin_)))
-        if sense_all is None:
-            sense_all = self._sense[(meq, len(bin_))] = np.zeros(meq + len(bin_), dtype=np.int32)
-            sense_all[:meq] = _DAQP_EQUALITY
-        for level, keep in ((0, None), (1, ~cop_rows), (2, np.zeros(len(bin_), bool))):
+    def _solve(self, G, g, C, lo, ne, cop_rows) -> tuple[np.ndarray, int]:
+        """min 1/2 x^T G x - g^T x  s.t.  C[:ne] x = lo[:ne], C[ne:] x >= lo[ne:] (``cop_rows`` flags the CoP rows of
+        the inequalities) by DAQP (a dual active-set method for small dense QPs, exact to its tolerances); relaxed
+        (CoP rows dropped, then every inequality) when DAQP reports no optimum (an infeasible set of constraints: the
+        state is beyond what the soles can carry)."""
+        key = (ne, len(lo))
+        bounds = self._bounds.get(key)
+        if bounds is None:      # DAQP's row kinds and the upper bounds (none on the inequalities), per row counts
+            sense = np.zeros(len(lo), dtype=np.int32)
+            sense[:ne] = _DAQP_EQUALITY
+            bounds = self._bounds[key] = (sense, np.full(len(lo), _DAQP_INF))
+        sense_all, hi_all = bounds
+        hi_all[:ne] = lo[:ne]
+        for level, keep in ((0, None), (1, ~cop_rows), (2, np.zeros(len(cop_rows), bool))):
             if keep is None:
-                A, lo, hi, sense = A_all, lo_all, hi_all, sense_all
+                A, lo_k, hi, sense = C, lo, hi_all, sense_all
             else:
-                rows = np.concatenate([np.ones(meq, dtype=bool), keep])
-                A, lo, hi, sense = A_all[rows], lo_all[rows], hi_all[rows], sense_all[rows]
-            x, _, flag, _ = self._daqp(G, -g, A, hi, lo, sense)
+                rows = np.concatenate([np.ones(ne, dtype=bool), keep])
+                A, lo_k, hi, sense = C[rows], lo[rows], hi_all[rows], sense_all[rows]
+            x, _, flag, _ = self._daqp(G, -g, A, hi, lo_k, sense)
             if flag != _DAQP_OPTIMAL:
                 continue
             if level == 1:

@@ -1161,7 +1161,8 @@ def balance_qp(A, w, b, M_upper, h, J, rhs_shift, nw, box_kind, split_weld, spli
     ``split_weld[j]``, its lock row ``split_lock[j]`` in lam, X[j] (6, 6) and jt[j] (6,); the box rows (11, 6)
     ``heel``, ``toe``, ``full``; the regularisation weights.  x = [a (nv); lam (m); W_t (6 per split)].
 
-    Returns G, g (min 1/2 x'Gx - g'x), Ceq, beq (Ceq x = beq), Cin (Cin x >= 0), cop (Cin's CoP rows), M (nv, nv)
+    Returns G, g (min 1/2 x'Gx - g'x), C, lo (the first ``ne`` rows of C the equalities C x = lo, the others the
+    inequalities C x >= lo = 0: stacked as DAQP takes them), ne, cop (the inequality rows' CoP flags), M (nv, nv)
     symmetric and Tx (nv - 6, n) with tau[6:] = Tx x + h[6:]."""
     nv = M_upper.shape[0]
     m = J.shape[0]
@@ -1200,8 +1201,13 @@ def balance_qp(A, w, b, M_upper, h, J, rhs_shift, nw, box_kind, split_weld, spli
     # equalities: the base rows of M a + h - J^T lam = 0; lam_lock = j_toe . W_t; J a = -gamma
     n_lock = m - nw
     ne = 6 + n_lock + m
-    Ceq = np.zeros((ne, n))
-    beq = np.zeros(ne)
+    nb = heel.shape[0]
+    n_box = box_kind.size + ns
+    C = np.zeros((ne + nb * n_box, n))     # equalities, then inequalities (11 rows a box)
+    lo = np.zeros(ne + nb * n_box)
+    Ceq = C[:ne]
+    beq = lo[:ne]
+    Cin = C[ne:]
     for i in range(6):
         for j in range(nv):
             Ceq[i, j] = M[i, j]
@@ -1219,9 +1225,6 @@ def balance_qp(A, w, b, M_upper, h, J, rhs_shift, nw, box_kind, split_weld, spli
             Ceq[6 + n_lock + i, j] = J[i, j]
         beq[6 + n_lock + i] = -rhs_shift[i]
     # inequalities: 11 rows a box (7 force rows, 4 CoP rows)
-    nb = heel.shape[0]
-    n_box = box_kind.size + ns
-    Cin = np.zeros((nb * n_box, n))
     cop = np.zeros(nb * n_box, dtype=np.bool_)
     row = 0
     for i in range(box_kind.size):
@@ -1251,7 +1254,7 @@ def balance_qp(A, w, b, M_upper, h, J, rhs_shift, nw, box_kind, split_weld, spli
             for a in range(7, nb):
                 cop[row + a] = True
             row += nb
-    return G, g, Ceq, beq, Cin, cop, M, Tx
+    return G, g, C, lo, ne, cop, M, Tx
 
 
 @njit
@@ -1294,8 +1297,8 @@ def balance_stage(q, v, J, dJ, M_upper, h, parents, axis, idx_q, jR, jp, support
     the hip, trunk, swing tasks, then kp, kd of the posture.  ``split_toe``: per weld, the toe-body frame row of a
     flat foot (box_kind 0), else -1.
 
-    Returns (G, g, Ceq, beq, Cin, cop, M, Tx, Jc, X, lift0) (:func:`balance_qp`; Jc the constraint rows, X (n_split, 6,
-    6), lift0 the heel lift used, rad)."""
+    Returns (G, g, C, lo, ne, cop, M, Tx, Jc, X, lift0, pos_err, ori_err) (:func:`balance_qp`; Jc the constraint rows,
+    X (n_split, 6, 6), lift0 the heel lift used, rad; the largest weld errors, m and rad)."""
     nv = v.size
     th, thd = _stage_state(q, v, J, dJ, parents, axis, idx_q, jR, jp, support, fparent, fRp, fpp, jcols, jsign,
                            theta_q, theta0, fneed, R, p, fR, fpos, motion, vel)
@@ -1405,18 +1408,19 @@ def balance_stage(q, v, J, dJ, M_upper, h, parents, axis, idx_q, jR, jp, support
         split_weld[s] = i
         split_lock[s] = nw           # the phase's one lock row follows the weld rows
         s += 1
-    G, g, Ceq, beq, Cin, cop, M, Tx = balance_qp(A, w, b, M_upper, h, Jc, r, nw, box_kind, split_weld, split_lock, X,
-                                                 jt, heel, toe, full, w_acc, w_force, w_torque, unload)
-    return G, g, Ceq, beq, Cin, cop, M, Tx, Jc, X, lift0, pos_err, ori_err
+    G, g, C, lo, ne, cop, M, Tx = balance_qp(A, w, b, M_upper, h, Jc, r, nw, box_kind, split_weld, split_lock, X, jt,
+                                             heel, toe, full, w_acc, w_force, w_torque, unload)
+    return G, g, C, lo, ne, cop, M, Tx, Jc, X, lift0, pos_err, ori_err
 
 
 @njit
 def balance_finish(x, M, h, Jc, J, dJ, v, R, p, support, g1, g3, gs, hj, arm_mass, arm_lever, arm_I, gravity,
-                   pos_err, ori_err, fR, fpos, vel, jcols, jsign, bounded, bounds):
-    """(a, lam, tau, T, log, theta_ddot, over) of the balance controller's QP solution x = [a; lam; ...]: tau = M a +
-    h - Jc^T lam with the base rows zeroed, T the thesis actuator torques (:func:`_thesis_torques`), the stage log the
-    weld engine records (layout ``stage.StageOutput``: weld errors, dynamics residual, task frames), the thesis joint
-    accelerations (jsign * a[jcols]) and whether a bounded component T[bounded[i]] exceeds bounds[i] in magnitude.
+                   pos_err, ori_err, fR, fpos, vel, jcols, jsign, bounded, bounds, limits):
+    """(a, lam, tau, T, log, theta_ddot, over, inside) of the balance controller's QP solution x = [a; lam; ...]: tau
+    = M a + h - Jc^T lam with the base rows zeroed, T the thesis actuator torques (:func:`_thesis_torques`), the stage
+    log the weld engine records (layout ``stage.StageOutput``: weld errors, dynamics residual, task frames), the
+    thesis joint accelerations (jsign * a[jcols]), whether a bounded component T[bounded[i]] exceeds bounds[i] in
+    magnitude, and whether every |T[i]| <= limits[i] (``Actuators.saturate``'s test: False for a NaN).
     R, p, fR, fpos, vel: what :func:`balance_stage` left in its buffers; pos_err, ori_err: what it returned."""
     nv = v.size
     m = Jc.shape[0]
@@ -1441,4 +1445,8 @@ def balance_finish(x, M, h, Jc, J, dJ, v, R, p, support, g1, g3, gs, hj, arm_mas
     for i in range(bounded.size):
         if abs(T[bounded[i]]) > bounds[i]:
             over = True
-    return a, lam, tau, T, log, thdd, over
+    inside = True
+    for i in range(limits.size):
+        if not abs(T[i]) <= limits[i]:
+            inside = False
+    return a, lam, tau, T, log, thdd, over, inside
