@@ -214,6 +214,24 @@ def test_references_are_read_on_the_plans_clock(hm, sc, state):
     off = BalanceController(BalanceSettings(time_shift=False))
     off.setup(ControlContext(hm, sc, sim.traj, sim.q0, sim.engine.name, sim.engine.constraints))
     assert np.array_equal(off(replace(obs, plan_delay=d)).tau, off(obs).tau)
+def test_toe_off_ramps_from_the_double_supports_start(hm, sc, state):
+    """The trailing heel's lift target (double support's toe-off) starts at zero when the double support starts,
+    also after an early touchdown (the plan's clock does not wait for one: the phase then starts before its planned
+    start), and rises monotonically to ``heel_lift_rad``."""
+    sim, obs = state
+    settings = BalanceSettings()
+    for early in (0.0, 0.06):
+        ctl = _with(hm, sc, sim)
+        k = next(i for i, ph in enumerate(ctl.traj.phases) if i > 0 and ph.swing_foot is None)   # after the lead-in
+        info = ctl.traj.phases[k]
+        phase = next(p for p in Phase if p.name == info.name)
+        times = info.t_start - early + np.linspace(0.0, early + min(info.duration, settings.heel_lift_time_s), 40)
+        lift = [ctl._targets(Observation(t, k, phase, obs.q, obs.v, obs.anchors)).heel[1] for t in times]
+        assert lift[0] == 0.0
+        assert np.all(np.diff(lift) >= 0.0)
+        assert lift[-1] == pytest.approx(settings.heel_lift_rad, abs=1e-12)
+
+
 def _with(hm, sc, sim, **settings) -> BalanceController:
     ctl = BalanceController(BalanceSettings(**settings))
     ctl.setup(ControlContext(hm, sc, sim.traj, sim.q0, sim.engine.name, sim.engine.constraints))

@@ -385,7 +385,8 @@ class BalanceController:
         self._upper[16:] = True                                     # theta18..theta27 (eq. 4.5)
         s = self.settings
         self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
-        self._lift_k, self._lift0 = -1, 0.0     # the swing (its phase index) and its heel lift at lift-off, rad
+        self._lift_k, self._lift0 = -1, 0.0
+        self._dsp_k, self._dsp_t0 = -1, 0.0     # the double support (its phase index) and its start, plan's clock, s     # the swing (its phase index) and its heel lift at lift-off, rad
         self._box_cache: dict[tuple, np.ndarray] = {}
         self._task_buffers: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         # the components linear in tau (revolute and spherical joints; the shoulders' are not) and their bounds
@@ -536,7 +537,11 @@ class BalanceController:
         elif phase.is_double_support:
             # the trailing foot, held by its toe: lift its heel (toe-off) so that only the toe part touches, as the
             # contact model (toe weld) assumes; on real ground a flat trailing foot would carry load on its heel
-            x = min(1.0, (t - info.t_start) / min(info.duration, s.heel_lift_time_s))
+            # the ramp starts when this double support does: its planned start, or earlier after an early touchdown
+            # (the plan's clock waits for a late one, not for an early one)
+            if self._dsp_k != k:
+                self._dsp_k, self._dsp_t0 = k, min(t, info.t_start)
+            x = min(1.0, max(0.0, (t - self._dsp_t0) / min(info.duration, s.heel_lift_time_s)))
             tg.heel = ("R" if phase.support_foot == "L" else "L", s.heel_lift_rad * x * x * (3.0 - 2.0 * x))
         return tg
 
