@@ -9,6 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 mujoco = pytest.importorskip("mujoco")
@@ -64,7 +65,9 @@ def walk_reads(hm: HumanoidModel) -> dict:
     meters = {"chunk7": GroundMeter(eng.mm, eng.settings.contact_force_N, chunk=7),
               "default": GroundMeter(eng.mm, eng.settings.contact_force_N)}
     ref = ReferenceGroundMeter(eng.mm, eng.settings.contact_force_N)
+    pdata = hm.model.createData()
     found = {"updates": 0, "wrench_mismatch": [], "load_mismatch": [], "meter_mismatch": [], "tilt_gap": 0.0,
+             "state_mismatch": [],
              "mid_run": [], "loaded": set(), "stance": set(), "supports": 0}
     measure = eng._measure
 
@@ -78,13 +81,24 @@ def walk_reads(hm: HumanoidModel) -> dict:
         end_loads(eng.mm, d, ref_loads, False)
         if not _same(loads, ref_loads):
             found["load_mismatch"].append(t)
+        smap = eng.map
+        q, v = mjc.pin_state(d.qpos, d.qvel, smap.q_gather, smap.v_gather)
+        qpos = d.qpos.copy()
+        a = smap.a_from_qacc(q, v, d.qacc)
+        tau = smap.tau_from_ctrl(d.ctrl)
+        rnea = pin.rnea(hm.model, pdata, q, v, a)
+        if not (_same(q, smap.q_from_qpos(qpos)) and _same(v, smap.v_from_qvel(qpos, d.qvel))
+                and _same(mjc.pin_acceleration(q, v, d.qacc, smap.v_gather), a)
+                and mjc.dynamics_residual(rnea, tau, q, d.qfrc_constraint, smap.v_gather)
+                == float(np.max(np.abs(rnea - tau - smap.tau_from_qfrc(q, d.qfrc_constraint))))):
+            found["state_mismatch"].append(t)
         stance = {None: -1, "R": 0, "L": 1}[eng.phase.support_foot]
         r = ref.update(d, stance)
         for m in meters.values():
-            if m.update(d, stance) != r or not _same(m.out[:7], ref.out[:7]) or m.out[10] != ref.out[10]:
+            if m.update(d, stance) & 3 != r & 3 or not _same(m.out[:7], ref.out[:7]) or m.out[10] != ref.out[10]:
                 found["meter_mismatch"].append(t)
             found["tilt_gap"] = max(found["tilt_gap"], float(np.max(np.abs(m.out[7:10] - ref.out[7:10]))))
-        found["loaded"].add(r)
+        found["loaded"].add(r & 3)
         found["stance"].add(stance)
         if found["updates"] % 101 == 0:      # read the maxima mid-run too (a reduction of a partial chunk)
             found["mid_run"].append([(m.slip_max, m.tilt_max, m.stance_tilt_max, m.penetration_max)
@@ -106,6 +120,43 @@ def test_contact_wrenches_are_the_numpy_path_to_the_bit(walk_reads: dict) -> Non
     compiled.contact_loads = foot_loads, bit for bit at every control update of the walk."""
     assert walk_reads["updates"] > 700
     assert walk_reads["wrench_mismatch"] == [] and walk_reads["load_mismatch"] == []
+
+
+def test_state_maps_are_the_numpy_path_to_the_bit(walk_reads: dict) -> None:
+    """compiled.pin_state = StateMap.q_from_qpos / v_from_qvel, pin_acceleration = a_from_qacc, dynamics_residual =
+    NumPy's max |rnea - tau - tau_from_qfrc|, bit for bit at every control update of the walk."""
+    assert walk_reads["state_mismatch"] == []
+
+
+def test_state_maps_at_random_states(hm: HumanoidModel) -> None:
+    """The compiled state maps against StateMap's at random base orientations (unit quaternions scaled by up to
+    1e-9, as MuJoCo's normalised ones are) and velocities, zero and negative-zero velocities included (their
+    signs of zero too); put_ctrl = ctrl_from_tau, and it refuses a non-finite torque without writing."""
+    from humanoid_sim.mujoco import MujocoSim
+
+    smap = MujocoSim(hm).map
+    rng = np.random.default_rng(5)
+    for k in range(2000):
+        quat = rng.normal(size=4)
+        quat *= (1.0 + rng.uniform(-1e-9, 1e-9)) / np.linalg.norm(quat)
+        qpos, qvel, qacc, qfrc = (rng.normal(size=n) for n in (smap.nq, smap.nv, smap.nv, smap.nv))
+        qpos[3:7] = quat
+        if k % 3 == 0:
+            qvel[:] = -0.0 if k % 2 else 0.0
+        q, v = mjc.pin_state(qpos, qvel, smap.q_gather, smap.v_gather)
+        assert _same(q, smap.q_from_qpos(qpos)) and _same(v, smap.v_from_qvel(qpos, qvel))
+        assert _same(mjc.pin_acceleration(q, v, qacc, smap.v_gather), smap.a_from_qacc(q, v, qacc))
+        rnea, tau = rng.normal(size=smap.nv), rng.normal(size=smap.nv)
+        assert mjc.dynamics_residual(rnea, tau, q, qfrc, smap.v_gather) == \
+            float(np.max(np.abs(rnea - tau - smap.tau_from_qfrc(q, qfrc))))
+        ctrl = np.full(smap.nu, 7.0)
+        assert mjc.put_ctrl(tau, smap.ctrl_gather, ctrl) and _same(ctrl, smap.ctrl_from_tau(tau))
+    tau[10] = np.nan
+    ctrl = np.full(smap.nu, 7.0)
+    assert not mjc.put_ctrl(tau, smap.ctrl_gather, ctrl) and (ctrl == 7.0).all()
+    assert not mjc.all_finite(tau) and mjc.all_finite(ctrl)
+    rnea[4] = np.nan
+    assert math.isnan(mjc.dynamics_residual(rnea, tau, q, qfrc, smap.v_gather))
 
 
 def test_ground_meter_is_the_reference_meter(walk_reads: dict) -> None:
@@ -227,16 +278,18 @@ def test_fall_thresholds(hm: HumanoidModel, compiled: bool | None) -> None:
     d = eng.sim.data
     tilt, hip_z = trunk_tilt(eng.mm, d), float(d.xipos[eng.mm.base_body][2])
     assert 1e-4 < tilt < math.pi / 4
-    low = replace(sc, simulation=replace(sc.simulation, fall_height_m=0.0))
-    for limit, falls in ((tilt, False), (math.nextafter(tilt, 0.0), True)):
-        eng.settings, eng.sc, eng.fall = replace(eng.settings, trunk_tilt_fall_rad=limit), low, None
-        assert eng._measure(0.15) is falls
-        assert not falls or "lower trunk tilted" in eng.fall[1]
-    for height, falls in ((hip_z, False), (math.nextafter(hip_z, 1.0), True)):
-        eng.settings, eng.fall = replace(eng.settings, trunk_tilt_fall_rad=math.pi / 4), None
-        eng.sc = replace(sc, simulation=replace(sc.simulation, fall_height_m=height))
-        assert eng._measure(0.15) is falls
-        assert not falls or f"hip CoM height {hip_z:.3f} m below" in eng.fall[1]
+
+    def falls(fall_height: float, trunk_limit: float) -> bool:
+        """_measure at this state with these thresholds (the engine reads them when a run starts)."""
+        eng.sc = replace(sc, simulation=replace(sc.simulation, fall_height_m=fall_height))
+        eng.settings = replace(eng.settings, trunk_tilt_fall_rad=trunk_limit)
+        eng._reset_measures()
+        return eng._measure(0.15)
+
+    assert not falls(0.0, tilt)
+    assert falls(0.0, math.nextafter(tilt, 0.0)) and "lower trunk tilted" in eng.fall[1]
+    assert not falls(hip_z, math.pi / 4)
+    assert falls(math.nextafter(hip_z, 1.0), math.pi / 4) and f"hip CoM height {hip_z:.3f} m below" in eng.fall[1]
     # the feet's tilts the edge test reads: NumPy's sole_tilt, or libm's within 1e-15 rad of it
     for i, f in enumerate("RL"):
         assert abs(eng.ground.out[7 + i] - sole_tilt(eng.mm, d, f)) <= 1e-15

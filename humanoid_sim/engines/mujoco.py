@@ -163,7 +163,9 @@ class MujocoEngine:
         self.traj = traj
         self.model = hm.model
         contact = self.settings.contact or MujocoSettings.from_scenario(scenario)
-        self.sim = MujocoSim(hm, contact)
+        if compiled and not mjc.AVAILABLE:
+            raise MujocoModelError("MujocoEngine(compiled=True): numba is not installed")
+        self.sim = MujocoSim(hm, contact, compiled=compiled)
         self.mm = self.sim.mm
         self.map = self.sim.map
         self.act = Actuators(hm)
@@ -175,8 +177,6 @@ class MujocoEngine:
         self._body = {TOE_BODY[f]: self.mm.foot_bodies[f][0] for f in FEET}
         self._body.update({FOOT_BODY[f]: self.mm.foot_bodies[f][1] for f in FEET})
         self._no_sat = np.zeros(26, dtype=bool)
-        if compiled and not mjc.AVAILABLE:
-            raise MujocoModelError("MujocoEngine(compiled=True): numba is not installed")
         elliptic = self.mm.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
         self.compiled = compiled is not False and mjc.AVAILABLE and elliptic
         self._group = _tables(self.mm).pair_array
@@ -188,8 +188,13 @@ class MujocoEngine:
         self._reset_measures()
 
     def _reset_measures(self) -> None:
-        f_min = self.settings.contact_force_N
-        self.ground = GroundMeter(self.mm, f_min) if self.compiled else ReferenceGroundMeter(self.mm, f_min)
+        """A new run's ground measures (:attr:`ground`, reading the settings' and the scenario's thresholds now)."""
+        s = self.settings
+        if self.compiled:
+            limits = (s.edge_tilt_rad - _NEAR, self.sc.simulation.fall_height_m, s.trunk_tilt_fall_rad - _NEAR)
+            self.ground = GroundMeter(self.mm, s.contact_force_N, limits)
+        else:
+            self.ground = ReferenceGroundMeter(self.mm, s.contact_force_N)
         self.fall: tuple[float, str] | None = None
 
     # ------------------------------------------------------------------ state
@@ -288,8 +293,8 @@ class MujocoEngine:
         """The logged quantities of a record (:meth:`_record`) that Pinocchio gives at (q, v, a): the acceleration
         a, the thesis torques when the controller gave none, the anchors' drift, the dynamics residual and the
         task frames."""
-        model, d, fid = self.model, self.rec_data, self.fid
-        a = self.map.a_from_qacc(q, v, qacc)
+        model, d, fid, smap = self.model, self.rec_data, self.fid, self.map
+        a = mjc.pin_acceleration(q, v, qacc, smap.v_gather) if self.compiled else smap.a_from_qacc(q, v, qacc)
         if T is None:
             T = T_cmd = self.act.thesis_torques(q, v, a, tau)
             sat = self._no_sat
@@ -299,8 +304,10 @@ class MujocoEngine:
             sat = self._no_sat
         if thdd_c is None:
             thdd_c = np.full(26, np.nan)
-        tau_c = self.map.tau_from_qfrc(q, qfrc_c)
-        residual = float(np.max(np.abs(pin.rnea(model, d, q, v, a) - tau - tau_c)))
+        if self.compiled:
+            residual = mjc.dynamics_residual(pin.rnea(model, d, q, v, a), tau, q, qfrc_c, smap.v_gather)
+        else:
+            residual = float(np.max(np.abs(pin.rnea(model, d, q, v, a) - tau - smap.tau_from_qfrc(q, qfrc_c))))
         pin.forwardKinematics(model, d, q, v)
         pin.updateFramePlacements(model, d)
         pos = ori = 0.0
@@ -347,11 +354,14 @@ class MujocoEngine:
         """Slip, tilt and penetration (:attr:`ground`) at the state at t of a control update, whose kinematics and
         contact forces MuJoCo's data hold (right after the update's first MuJoCo step); True when it is a fall (the
         first is kept for :meth:`check`)."""
-        s, mm, data = self.settings, self.mm, self.sim.data
-        loaded = self.ground.update(data, _STANCE[None if self.phase is None else self.phase.support_foot])
+        data = self.sim.data
+        code = self.ground.update(data, _STANCE[None if self.phase is None else self.phase.support_foot])
         if self.fall is not None:
             return True
-        out = self.ground.out
+        if not code & 4:              # no fall test can fire (GroundMeter's limits)
+            return False
+        s, mm, out = self.settings, self.mm, self.ground.out
+        loaded = code & 3
         edge = ""
         if loaded == 1 or loaded == 2:       # one foot alone carries the robot
             i = loaded - 1
@@ -450,18 +460,22 @@ class MujocoEngine:
         ok = ftot[:, 2] > 1e-9
         zmp[ok] = np.stack([-mtot[ok, 1] / ftot[ok, 2], mtot[ok, 0] / ftot[ok, 2], np.zeros(ok.sum())], axis=1)
         yaw0 = yaw_of(hm.spec.C0)
+        hip_R, hip_R_ref = np.array(R17), np.array([r.hip_R for r in ref])
+        # yaw_of of every row in one np.arctan2 each (the same function on the same numbers: the same angles)
+        heading = np.arctan2(hip_R[:, 1, 0].copy(), hip_R[:, 0, 0].copy()).tolist()
+        heading_ref = np.arctan2(hip_R_ref[:, 1, 0].copy(), hip_R_ref[:, 0, 0].copy()).tolist()
         yaw, yaw_ref = np.empty(n), np.empty(n)
         prev, prev_ref = yaw0, yaw0
         for i in range(n):
-            prev = yaw[i] = unwrap_to(yaw_of(R17[i]), prev)
-            prev_ref = yaw_ref[i] = unwrap_to(yaw_of(ref[i].hip_R), prev_ref)
+            prev = yaw[i] = unwrap_to(heading[i], prev)
+            prev_ref = yaw_ref[i] = unwrap_to(heading_ref[i], prev_ref)
         cols = dict(
             t=np.array(t), phase=np.array(k), basic_phase=np.array([BASIC[ph] for ph in phase]), q=Q, v=V,
             theta=hm.theta_sign * Q[:, hm.theta_q_idx], theta_dot=thesis(V), theta_ddot=thesis(A),
             theta_ddot_cmd=np.array(thdd_c), T_cmd=np.array(T_cmd), T=np.array(T), saturated=np.array(sat),
             tau=np.array(tau), hip_p=np.array(hip_p), hip_p_ref=np.array([r.hip_p for r in ref]),
             hip_p_ctrl_ref=np.array(hip_ctrl), hip_v=np.array(hip_v), hip_v_ref=np.array([r.hip_v for r in ref]),
-            hip_R=np.array(R17), hip_R_ref=np.array([r.hip_R for r in ref]), hip_yaw=yaw, hip_yaw_ref=yaw_ref,
+            hip_R=hip_R, hip_R_ref=hip_R_ref, hip_yaw=yaw, hip_yaw_ref=yaw_ref,
             toe_R_p=np.array(toe_R), toe_R_p_ref=np.array([r.toe_R_p for r in ref]), toe_L_p=np.array(toe_L),
             toe_L_p_ref=np.array([r.toe_L_p for r in ref]), foot_R_R=np.array(R1), foot_L_R=np.array(R2),
             body_force=np.array(bf), body_moment=np.array(bm), foot_wrench=fw, cop=np.array(cop),

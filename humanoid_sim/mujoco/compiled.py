@@ -101,10 +101,12 @@ def _tilt(R: np.ndarray, body: int) -> float:
 @njit
 def ground_update(geom: np.ndarray, dist: np.ndarray, efc_address: np.ndarray, efc_force: np.ndarray,
                   group: np.ndarray, ids: np.ndarray, geom_xpos: np.ndarray, geom_xmat: np.ndarray,
-                  xmat: np.ndarray, xipos: np.ndarray, f_min: float, stance: int, rows: np.ndarray,
-                  flags: np.ndarray, row: int, out: np.ndarray) -> int:
+                  xmat: np.ndarray, xipos: np.ndarray, f_min: float, limits: np.ndarray, stance: int,
+                  rows: np.ndarray, flags: np.ndarray, row: int, out: np.ndarray) -> int:
     """One control update's ground reads (module docstring).  Returns which feet carry at least ``f_min`` of
-    normal force (bit 0 R, bit 1 L).
+    normal force (bit 0 R, bit 1 L), plus 4 when a fall test may fire: ``limits`` = [a foot tilt, a CoM height,
+    a trunk tilt]; one foot alone loaded with its libm tilt above limits[0], the trunk's CoM below limits[1] or
+    its libm tilt above limits[2].
 
     ``ids`` = [sole geom of R toe, R main, L toe, L main, main body R, main body L, lower-trunk body];
     ``geom_xpos`` / ``geom_xmat`` / ``xmat`` / ``xipos``: MuJoCo's; ``stance``: the flat-held foot (0 R, 1 L, -1
@@ -136,6 +138,9 @@ def ground_update(geom: np.ndarray, dist: np.ndarray, efc_address: np.ndarray, e
     base = ids[6]
     out[9] = _tilt(xmat, base)
     out[10] = xipos[base, 2]
+    if (loaded == 1 and out[7] > limits[0]) or (loaded == 2 and out[8] > limits[0]) or out[10] < limits[1] \
+            or out[9] > limits[2]:
+        return loaded | 4
     return loaded
 
 
@@ -237,4 +242,100 @@ def contact_wrenches(geom: np.ndarray, pos: np.ndarray, frame: np.ndarray, dim: 
             for i in range(3):
                 bf[r, i] = _dot_col(M, i, t[0], t[1], t[2])
                 bm[r, i] = _dot_col(M, i, t[3], t[4], t[5])
+    return True
+
+
+# ---------------------------------------------------------------------------------------- the state map's hot path
+@njit
+def _rotate_back(x: float, y: float, z: float, w: float, u: np.ndarray, out: np.ndarray) -> None:
+    """out[:3] = R.T @ u[:3], R the rotation of the quaternion (x, y, z, w) as :func:`humanoid_sim.mujoco.state.
+    _rotation_xyzw` makes it, ``pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()`` -- Eigen's
+    arithmetic: the squared norm summed as (x^2 + z^2) + (y^2 + w^2) (two 2-double packets), each coefficient
+    divided by its square root, Eigen's rotation-matrix formula -- and the product as NumPy's (measured: the same
+    bits)."""
+    s = (x * x + z * z) + (y * y + w * w)
+    if s > 0.0:
+        n = math.sqrt(s)
+        x, y, z, w = x / n, y / n, z / n, w / n
+    tx, ty, tz = 2.0 * x, 2.0 * y, 2.0 * z
+    twx, twy, twz = tx * w, ty * w, tz * w
+    txx, txy, txz = tx * x, ty * x, tz * x
+    tyy, tyz, tzz = ty * y, tz * y, tz * z
+    u0, u1, u2 = u[0], u[1], u[2]
+    # column i of R dotted with u (R row-major: R[0] = (1 - (tyy + tzz), txy - twz, txz + twy), ...)
+    out[0] = ((0.0 + (1.0 - (tyy + tzz)) * u0) + (txy + twz) * u1) + (txz - twy) * u2
+    out[1] = ((0.0 + (txy - twz) * u0) + (1.0 - (txx + tzz)) * u1) + (tyz + twx) * u2
+    out[2] = ((0.0 + (txz + twy) * u0) + (tyz - twx) * u1) + (1.0 - (txx + tyy)) * u2
+
+
+@njit
+def _gather(x: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """x[idx] (a new array)."""
+    out = np.empty(idx.size)
+    for i in range(idx.size):
+        out[i] = x[idx[i]]
+    return out
+
+
+@njit
+def pin_state(qpos: np.ndarray, qvel: np.ndarray, q_gather: np.ndarray, v_gather: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Pinocchio's (q, v) (new arrays) from MuJoCo's (qpos, qvel), as :meth:`humanoid_sim.mujoco.state.StateMap.
+    q_from_qpos` / ``v_from_qvel`` compute them: the gathers, and v's base linear rows rotated into the base
+    frame (MuJoCo's quaternion is (w, x, y, z))."""
+    q = _gather(qpos, q_gather)
+    v = _gather(qvel, v_gather)
+    _rotate_back(qpos[4], qpos[5], qpos[6], qpos[3], qvel, v)
+    return q, v
+
+
+@njit
+def pin_acceleration(q: np.ndarray, v: np.ndarray, qacc: np.ndarray, v_gather: np.ndarray) -> np.ndarray:
+    """Pinocchio's acceleration a (a new array) from MuJoCo's qacc at the state (q, v), as :meth:`humanoid_sim.
+    mujoco.state.StateMap.a_from_qacc`: a = qacc[v_gather], then a[:3] = R.T @ qacc[:3] - w x u (u, w: v's base
+    linear and angular rows)."""
+    a = _gather(qacc, v_gather)
+    _rotate_back(q[3], q[4], q[5], q[6], qacc, a)
+    u0, u1, u2, w0, w1, w2 = v[0], v[1], v[2], v[3], v[4], v[5]
+    a[0] = a[0] - (w1 * u2 - w2 * u1)
+    a[1] = a[1] - (w2 * u0 - w0 * u2)
+    a[2] = a[2] - (w0 * u1 - w1 * u0)
+    return a
+
+
+@njit
+def dynamics_residual(rnea: np.ndarray, tau: np.ndarray, q: np.ndarray, qfrc_constraint: np.ndarray,
+                      v_gather: np.ndarray) -> float:
+    """max |rnea - tau - tau_c| (NaN if one is NaN), tau_c = :meth:`humanoid_sim.mujoco.state.StateMap.
+    tau_from_qfrc` of MuJoCo's constraint forces at q, as ``np.max(np.abs(rnea - tau - tau_c))``."""
+    tau_c = _gather(qfrc_constraint, v_gather)
+    _rotate_back(q[3], q[4], q[5], q[6], qfrc_constraint, tau_c)
+    worst = 0.0
+    for i in range(rnea.size):
+        r = abs((rnea[i] - tau[i]) - tau_c[i])
+        if r != r:
+            return r
+        if r > worst:
+            worst = r
+    return worst
+
+
+@njit
+def put_ctrl(tau: np.ndarray, gather: np.ndarray, ctrl: np.ndarray) -> bool:
+    """``ctrl[:] = tau[gather]`` (the motors' torques from Pinocchio's tau) when they are all finite; else False,
+    ``ctrl`` unchanged."""
+    for i in range(gather.size):
+        if not math.isfinite(tau[gather[i]]):
+            return False
+    for i in range(gather.size):
+        ctrl[i] = tau[gather[i]]
+    return True
+
+
+@njit
+def all_finite(x: np.ndarray) -> bool:
+    """Whether every entry of the 1-d array x is finite."""
+    for i in range(x.size):
+        if not math.isfinite(x[i]):
+            return False
     return True

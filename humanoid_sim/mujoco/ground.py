@@ -49,7 +49,8 @@ def _max(current: float, values: np.ndarray) -> float:
 
 
 class ReferenceGroundMeter:
-    """The NumPy meter (module docstring): ``update`` returns the loaded feet (bit 0 R, bit 1 L)."""
+    """The NumPy meter (module docstring): ``update`` returns the loaded feet (bit 0 R, bit 1 L) plus 4 (the fall
+    tests are always to be run)."""
 
     def __init__(self, mm: MujocoModel, f_min: float) -> None:
         self.mm = mm
@@ -84,7 +85,7 @@ class ReferenceGroundMeter:
         out[6] = self.penetration_max
         out[9] = trunk_tilt(mm, data)
         out[10] = data.xipos[mm.base_body][2]
-        return loaded
+        return loaded | 4
 
     @property
     def slip_max(self) -> float:
@@ -95,15 +96,19 @@ class ReferenceGroundMeter:
 class GroundMeter:
     """The compiled meter (module docstring), the same numbers as :class:`ReferenceGroundMeter`.
 
-    ``chunk``: updates buffered between two reductions of the slip and tilt maxima."""
+    ``limits``: (foot tilt, CoM height, trunk tilt) near which the fall tests are to be run (rad, m, rad; the
+    caller's thresholds with a margin for libm's tilts; None: always); ``chunk``: updates buffered between two
+    reductions of the slip and tilt maxima."""
 
-    def __init__(self, mm: MujocoModel, f_min: float, chunk: int = 1024) -> None:
+    def __init__(self, mm: MujocoModel, f_min: float, limits: tuple[float, float, float] | None = None,
+                 chunk: int = 1024) -> None:
         if mm.model.opt.cone != mujoco.mjtCone.mjCONE_ELLIPTIC:
             raise ValueError("GroundMeter reads an elliptic cone's normal forces; use ReferenceGroundMeter")
         if not (isinstance(chunk, int) and chunk >= 1):
             raise ValueError(f"GroundMeter: chunk = {chunk!r}, expected an integer >= 1")
         self.mm = mm
         self.f_min = float(f_min)
+        self._limits = np.array([-np.inf, np.inf, -np.inf] if limits is None else limits, dtype=float)
         self.chunk = chunk
         tables = _tables(mm)
         self._group = tables.pair_array
@@ -121,14 +126,15 @@ class GroundMeter:
 
     def update(self, data: mujoco.MjData, stance: int) -> int:
         """Read one update's state (``stance``: the flat-held foot, 0 R, 1 L, -1 none); returns the loaded feet
-        (bit 0 R, bit 1 L)."""
+        (bit 0 R, bit 1 L), plus 4 when a fall test may fire (``limits``)."""
         if data is not self._data:    # MjData's fixed-size arrays do not move: views taken once
             self._data = data
             self._fixed = (data.geom_xpos, data.geom_xmat, data.xmat, data.xipos)
         con = data.contact
         xpos, gmat, xmat, xipos = self._fixed
         loaded = ground_update(con.geom, con.dist, con.efc_address, data.efc_force, self._group, self._ids, xpos,
-                               gmat, xmat, xipos, self.f_min, stance, self._rows, self._flags, self._n, self.out)
+                               gmat, xmat, xipos, self.f_min, self._limits, stance, self._rows, self._flags, self._n,
+                               self.out)
         self._n += 1
         if self._n == self.chunk:
             self._reduce()
