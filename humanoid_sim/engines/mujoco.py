@@ -139,9 +139,10 @@ class MujocoEngine:
     Engine interface (:class:`humanoid_sim.engines.base.Engine`) plus the optional hooks :meth:`touchdown_signal`,
     :meth:`check` and :meth:`run_info`.  ``settings``: a :class:`MujocoEngineSettings`, or None for the
     defaults; ``overrides`` replace named fields of it (``MujocoEngine(hm, sc, control_period_s=0.001)``).
-    ``compiled``: read the ground with the compiled functions of :mod:`humanoid_sim.mujoco.compiled` (None = when
-    numba is installed, True = required, False = never: the NumPy reference path, the same numbers); either way
-    with an elliptic friction cone only (a pyramidal cone's forces are decoded by ``mj_contactForce``)."""
+    ``compiled``: the engine's bookkeeping by the compiled functions of :mod:`humanoid_sim.mujoco.compiled` (None =
+    when numba is installed, True = required, False = never: the NumPy reference path, the same numbers): the state
+    and torque maps, and with an elliptic friction cone (the default) the ground reads too (a pyramidal cone's
+    forces are decoded by ``mj_contactForce``: the reference path)."""
 
     name = "mujoco"
     constraints = None
