@@ -175,6 +175,26 @@ def test_ground_meter_is_the_reference_meter(walk_reads: dict) -> None:
     assert {1, 2, 3} <= w["loaded"] and {0, 1} <= w["stance"]
 
 
+def test_slip_reduce_is_slip_meter() -> None:
+    """compiled.slip_reduce over buffers of random sizes = one SlipMeter per box fed row by row, to the bit: random
+    supports (single rows, gaps, supports running across buffers, a buffer without any) and corner travels."""
+    from humanoid_sim.mujoco.contact import SlipMeter
+
+    rng = np.random.default_rng(3)
+    meters = [SlipMeter() for _ in range(4)]
+    last, anchor, slip = np.full(4, -2, dtype=np.intp), np.zeros((4, 4, 3)), np.zeros(4)
+    for size in rng.integers(1, 12, 60):
+        on = rng.random((size, 4)) < rng.choice([0.0, 0.5, 0.9])
+        corners = rng.normal(size=(size, 4, 4, 3)) * rng.choice([1e-6, 1e-3, 0.1])
+        for r in range(size):
+            for b in range(4):
+                meters[b].update("R", bool(on[r, b]), corners[r, b])
+        row, box = np.nonzero(on)
+        mjc.slip_reduce(corners[row, box], row, box, int(size), last, anchor, slip)
+        assert slip.tolist() == [m.max_slip["R"] for m in meters]
+    assert (slip > 0).all()
+
+
 def test_contact_wrenches_with_the_sole_as_geom1_and_fallback(hm: HumanoidModel) -> None:
     """A sole-floor contact listed sole first acts on the foot with the opposite sign (the kernel = the NumPy path
     to the bit, as contact.foot_contacts' own test flips them); contacts the kernel does not read (no constraint

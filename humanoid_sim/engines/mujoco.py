@@ -273,8 +273,19 @@ class MujocoEngine:
                                         data.xmat, fw, cop, bf, bm)
         if not done:
             self._contact_record(fw, cop, bf, bm)
-        return (q, v, data.qacc.copy(), data.qfrc_constraint.copy(), cmd.T, cmd.T_cmd, cmd.saturated,
-                cmd.theta_ddot_cmd, tau.copy(), self.anchors, bf, bm, fw, cop)
+        qacc = data.qacc.copy()
+        T, T_cmd, sat = cmd.T, cmd.T_cmd, cmd.saturated
+        if T is None:   # the controller gave tau only: the thesis torques now (a failure ends the run with a reason)
+            T = T_cmd = self.act.thesis_torques(q, v, self._acceleration(q, v, qacc), tau)
+            sat = self._no_sat
+        return (q, v, qacc, data.qfrc_constraint.copy(), T, T_cmd, sat, cmd.theta_ddot_cmd, tau.copy(),
+                self.anchors, bf, bm, fw, cop)
+
+    def _acceleration(self, q: np.ndarray, v: np.ndarray, qacc: np.ndarray) -> np.ndarray:
+        """Pinocchio's acceleration at (q, v) from MuJoCo's qacc (:meth:`humanoid_sim.mujoco.state.StateMap.
+        a_from_qacc`)."""
+        return mjc.pin_acceleration(q, v, qacc, self.map.v_gather) if self.compiled else \
+            self.map.a_from_qacc(q, v, qacc)
 
     def _contact_record(self, fw: np.ndarray, cop: np.ndarray, bf: np.ndarray, bm: np.ndarray) -> None:
         """:meth:`_record`'s ground wrenches by :func:`foot_contacts` and :meth:`_body_wrenches` (the reference of
@@ -292,13 +303,9 @@ class MujocoEngine:
     def _derive(self, q: np.ndarray, v: np.ndarray, qacc: np.ndarray, qfrc_c: np.ndarray, T: Any, T_cmd: Any,
                 sat: Any, thdd_c: Any, tau: np.ndarray, anchors: Any) -> tuple:
         """The logged quantities of a record (:meth:`_record`) that Pinocchio gives at (q, v, a): the acceleration
-        a, the thesis torques when the controller gave none, the anchors' drift, the dynamics residual and the
-        task frames."""
+        a, the anchors' drift, the dynamics residual and the task frames (and the command's defaults)."""
         model, d, fid, smap = self.model, self.rec_data, self.fid, self.map
-        a = mjc.pin_acceleration(q, v, qacc, smap.v_gather) if self.compiled else smap.a_from_qacc(q, v, qacc)
-        if T is None:
-            T = T_cmd = self.act.thesis_torques(q, v, a, tau)
-            sat = self._no_sat
+        a = self._acceleration(q, v, qacc)
         if T_cmd is None:
             T_cmd = T
         if sat is None:

@@ -1,9 +1,12 @@
-"""Compiled (numba) forms of the MuJoCo engine's per-update and per-step reads of the ground contact.
+"""Compiled (numba) forms of the MuJoCo engine's per-update and per-step bookkeeping.
 
-The reference of every number here is the NumPy code of :mod:`humanoid_sim.mujoco.contact` and
-:meth:`humanoid_sim.engines.mujoco.MujocoEngine._body_wrenches`; these functions compute the same numbers in the
-same order of floating-point operations (so the same bits; ``tests/test_mujoco_compiled.py`` checks that at every
-update of real walks), without the ~50 small NumPy calls per read:
+The reference of every number here is the NumPy code of :mod:`humanoid_sim.mujoco.contact`,
+:mod:`humanoid_sim.mujoco.state` and :meth:`humanoid_sim.engines.mujoco.MujocoEngine._body_wrenches`; these
+functions compute the same numbers in the same order of floating-point operations (so the same bits;
+``tests/test_mujoco_compiled.py`` checks that at every update of real walks), without the ~50 small NumPy calls
+per read.  Where NumPy's order is its libraries' (Eigen's quaternion norm, a BLAS matrix-vector product), it was
+measured on this machine's builds (pinocchio's and NumPy's wheels): another build could differ in the last bit,
+which that test would show.
 
 - :func:`contact_loads`: each sole box's normal force and each foot's penetration (:func:`.contact.foot_loads`);
 - :func:`ground_update`: those loads, the running penetration maximum, and a copy of what the slip and tilt
@@ -11,8 +14,12 @@ update of real walks), without the ~50 small NumPy calls per read:
   :class:`humanoid_sim.mujoco.ground.GroundMeter` reduces with NumPy in batches (the tilt's ``np.arctan2`` is not
   libm's ``atan2`` to the bit, so it stays NumPy's); the feet's and the lower trunk's tilts by libm, for the fall
   tests' thresholds only (the engine recomputes NumPy's value near a threshold);
+- :func:`slip_reduce`: the slip meters (:class:`.contact.SlipMeter`) over a buffer's rows, from the sole corners
+  NumPy computed from them (its matrix product may fuse multiply-adds: it stays NumPy's);
 - :func:`contact_wrenches`: the log's foot wrenches, centres of pressure and body wrenches of a step
-  (:func:`.contact.foot_contacts` and ``MujocoEngine._body_wrenches``).
+  (:func:`.contact.foot_contacts` and ``MujocoEngine._body_wrenches``);
+- :func:`pin_state`, :func:`pin_acceleration`, :func:`dynamics_residual`, :func:`put_ctrl`: the state map's hot
+  path (:class:`.state.StateMap`'s q, v, a, tau of MuJoCo's constraint forces, the motors' torques).
 
 Array arguments are MuJoCo's own (``data.contact.geom``, ``data.efc_force``, ...), read for an elliptic friction
 cone (a contact's normal force is its first ``efc_force`` row); the callers take the NumPy path otherwise.
@@ -339,3 +346,37 @@ def all_finite(x: np.ndarray) -> bool:
         if not math.isfinite(x[i]):
             return False
     return True
+
+
+@njit
+def slip_reduce(corners: np.ndarray, row: np.ndarray, box: np.ndarray, n: int, last: np.ndarray,
+                anchor: np.ndarray, slip: np.ndarray) -> None:
+    """:class:`humanoid_sim.mujoco.contact.SlipMeter`, one per sole box, over a buffer of n updates: ``corners``
+    (m, 4, 3) the supporting boxes' sole corners (world frame, m), row ``row[j]`` of the buffer and box ``box[j]``,
+    in row order.  A box's support begins at a row that does not follow its previous supporting row: its corners
+    are anchored there; at each later row of the support its slip is sqrt of the largest dx^2 + dy^2 of a corner
+    from its anchor (in SlipMeter's order of operations), ``slip[b]`` the largest so far (Python's max).
+
+    ``last`` (4,): per box the buffer row of its last supporting row, -1 for the row before the buffer (a support
+    carried in; ``anchor[b]`` (4, 4, 3) holds its corners), any other value for none; on return, -1 where the
+    box supports at row n - 1, else -2."""
+    for j in range(corners.shape[0]):
+        r, b = row[j], box[j]
+        if last[b] != r - 1:                          # a support begins: its corners are the anchor
+            for c in range(4):
+                for k in range(3):
+                    anchor[b, c, k] = corners[j, c, k]
+        else:
+            largest = 0.0
+            for c in range(4):
+                dx = corners[j, c, 0] - anchor[b, c, 0]
+                dy = corners[j, c, 1] - anchor[b, c, 1]
+                d2 = dx * dx + dy * dy
+                if d2 > largest:
+                    largest = d2
+            s = math.sqrt(largest)
+            if s > slip[b]:
+                slip[b] = s
+        last[b] = r
+    for b in range(4):
+        last[b] = -1 if last[b] == n - 1 else -2

@@ -12,9 +12,10 @@ At each update (the state right after the update's first MuJoCo step) a meter re
 :class:`ReferenceGroundMeter` does it with the NumPy functions of :mod:`.contact` at every update (the reference,
 ``compiled=False``).  :class:`GroundMeter` gives the same numbers: one compiled call per update
 (:func:`.compiled.ground_update`) reads the loads and copies the boxes' placements and the main bodies' z axes
-into a buffer row, and the slip and tilt maxima are reduced from the buffer with NumPy every
-:attr:`GroundMeter.chunk` updates (and when read), with the same operations as the reference on each row
-(``np.arctan2``, not libm's ``atan2``, which may differ in the last bit).
+into a buffer row, and the slip and tilt maxima are reduced from the buffer every :attr:`GroundMeter.chunk`
+updates (and when read), with the same operations as the reference on each row: the sole corners and the tilts
+by NumPy (its matrix product may fuse multiply-adds; its ``np.arctan2`` is not libm's ``atan2`` to the bit), the
+slip meters' arithmetic compiled (:func:`.compiled.slip_reduce`).
 
 Both meters fill :attr:`out` (:data:`.compiled.OUT_SIZE` floats, layout there): the fall tests' tilts there are
 libm's for :class:`GroundMeter`, so a test near a threshold recomputes NumPy's (:func:`.contact.sole_tilt`).
@@ -25,7 +26,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from humanoid_sim.mujoco.compiled import OUT_SIZE, ROW_FLAGS, ROW_FLOATS, contact_loads, ground_update
+from humanoid_sim.mujoco.compiled import (OUT_SIZE, ROW_FLAGS, ROW_FLOATS, contact_loads, ground_update,
+                                          slip_reduce)
 from humanoid_sim.mujoco.contact import SlipMeter, _tables, foot_loads, sole_corners, sole_tilt
 from humanoid_sim.mujoco.model import FEET, MujocoModel
 
@@ -114,13 +116,14 @@ class GroundMeter:
         self._group = tables.pair_array
         geoms = [g for f in FEET for g in mm.sole_geoms[f]]
         self._ids = np.array(geoms + [mm.foot_bodies[f][1] for f in FEET] + [mm.base_body], dtype=np.intp)
-        self._corners = [tables.corners[g] for g in geoms]      # (4, 3) per box, its own frame
+        self._corners = np.array([tables.corners[g] for g in geoms])   # (4, 4, 3): per box, its own frame
         self._rows = np.zeros((chunk, ROW_FLOATS))
         self._flags = np.zeros((chunk, ROW_FLAGS), dtype=np.int8)
         self._n = 0
         self.out = np.zeros(OUT_SIZE)
-        self._slip = [0.0] * 4
-        self._anchor: list[np.ndarray | None] = [None] * 4       # each box's corners when its support began
+        self._slip = np.zeros(4)                                # slip_reduce's state: the maxima,
+        self._last = np.full(4, -2, dtype=np.intp)              # whether a support is carried in,
+        self._anchor = np.zeros((4, 4, 3))                      # each box's corners when its support began
         self._tilt = [0.0, 0.0]                                  # tilt_max, stance_tilt_max of reduced rows
         self._data: mujoco.MjData | None = None
 
@@ -150,7 +153,7 @@ class GroundMeter:
     def slip_max(self) -> float:
         """Largest slip of a sole box over the run so far, m."""
         self._reduce()
-        return max(self._slip)
+        return float(max(self._slip.tolist()))
 
     @property
     def tilt_max(self) -> float:
@@ -165,49 +168,36 @@ class GroundMeter:
         return self._tilt[1]
 
     def _reduce(self) -> None:
-        """Fold the buffered rows into the maxima (each row as :class:`ReferenceGroundMeter` reads it)."""
+        """Fold the buffered rows into the maxima, each row as :class:`ReferenceGroundMeter` reads it: the sole
+        corners of every supporting box by one stacked matrix product (per row the product :func:`.contact.
+        sole_corners` computes), the slip meters in one compiled pass (:func:`.compiled.slip_reduce`), the
+        supporting main bodies' tilts by one ``np.arctan2``."""
         n = self._n
         if n == 0:
             return
         rows, flags = self._rows[:n], self._flags[:n]
-        for b in range(4):
-            self._reduce_slip(b, flags[:, b] != 0, rows[:, 12 * b:12 * b + 12])
-        for f in range(2):
-            on = flags[:, 2 * f + 1] != 0                      # the foot's main box supports
-            if on.any():
-                z = rows[on, 48 + 3 * f:51 + 3 * f]
-                tilt = np.arctan2(np.hypot(np.ascontiguousarray(z[:, 0]), np.ascontiguousarray(z[:, 1])),
-                                  np.ascontiguousarray(z[:, 2]))
-                self._tilt[0] = _max(self._tilt[0], tilt)
-                self._tilt[1] = _max(self._tilt[1], tilt[flags[on, 4] == f])
+        row, box = np.nonzero(flags[:, :4])                     # supporting boxes, in row order
+        if row.size:
+            first = (12 * box)[:, None]
+            R = rows[row[:, None], first + _ROTATION].reshape(-1, 3, 3)
+            corners = rows[row[:, None], first + _POSITION][:, None, :] + np.matmul(self._corners[box],
+                                                                                    R.transpose(0, 2, 1))
+        else:
+            corners = np.zeros((0, 4, 3))
+        slip_reduce(corners, row, box, n, self._last, self._anchor, self._slip)
+        row, foot = np.nonzero(flags[:, 1:4:2])                 # supporting main boxes (R, L)
+        if row.size:
+            z = rows[row[:, None], 48 + 3 * foot[:, None] + _POSITION]   # their bodies' z axes
+            tilt = np.arctan2(np.hypot(z[:, 0].copy(), z[:, 1].copy()), z[:, 2].copy())
+            self._tilt[0] = _max(self._tilt[0], tilt)
+            self._tilt[1] = _max(self._tilt[1], tilt[flags[row, 4] == foot])
         self._n = 0
 
-    def _reduce_slip(self, b: int, on: np.ndarray, rows: np.ndarray) -> None:
-        """:class:`.contact.SlipMeter` over the buffered rows of box ``b`` (``on``: it supports; ``rows``: its
-        geom's position and rotation): a support's first row anchors its corners, each later row's slip is the
-        largest horizontal distance of a corner from its anchor."""
-        if not on.any():
-            self._anchor[b] = None
-            return
-        idx = np.flatnonzero(on)
-        R = rows[idx, 3:12].reshape(-1, 3, 3)
-        # sole_corners per row: position + corners @ R.T (the same matrix product per row)
-        corners = rows[idx, None, 0:3] + np.matmul(self._corners[b], R.transpose(0, 2, 1))
-        before = np.empty(on.size, dtype=bool)
-        before[0] = self._anchor[b] is not None
-        before[1:] = on[:-1]
-        start = (on & ~before)[idx]                   # the row begins a support
-        seg = np.cumsum(start) - 1                    # which of the chunk's supports (-1: the one carried in)
-        anchor = np.empty_like(corners)
-        if self._anchor[b] is not None:
-            anchor[seg < 0] = self._anchor[b]
-        anchor[seg >= 0] = corners[start][seg[seg >= 0]]
-        dx = corners[:, :, 0] - anchor[:, :, 0]
-        dy = corners[:, :, 1] - anchor[:, :, 1]
-        d2 = np.fmax.reduce(dx * dx + dy * dy, axis=1)  # SlipMeter's largest dx^2 + dy^2 (NaN never wins) ...
-        d2 = np.where(d2 > 0.0, d2, 0.0)               # ... from 0.0
-        self._slip[b] = _max(self._slip[b], np.sqrt(d2[~start]))
-        self._anchor[b] = anchor[-1].copy() if on[-1] else None
+
+_POSITION = np.arange(3)
+"""Offsets of a box's geom position in a buffer row (after 12 b), and of a foot's main-body z axis (after 48 + 3 f)."""
+_ROTATION = np.arange(3, 12)
+"""Offsets of a box's geom rotation matrix (row-major) in a buffer row, after 12 b."""
 
 
 def end_loads(mm: MujocoModel, data: mujoco.MjData, out: np.ndarray, compiled: bool) -> None:
