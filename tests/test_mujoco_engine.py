@@ -179,12 +179,15 @@ def test_newton_contact_forces_vs_com(hm: HumanoidModel, sc) -> None:
     assert res1[t1 > 0.1].max() < 1e-2, res1[t1 > 0.1].max()
 
 
-def test_thesis_gait_tips_over_sideways(hm: HumanoidModel, sc) -> None:
+@pytest.mark.parametrize("compiled", [False, None])
+def test_thesis_gait_tips_over_sideways(hm: HumanoidModel, sc, compiled) -> None:
     """Sim 1's thesis gait on real ground: its first single support asks the left foot for a centre of pressure
     ~0.12 m inward of the foot's centre (the README's contact audit), 0.08 m beyond the sole's inner edge.  MuJoCo
     rolls the foot over that edge at once.  Measured: a fall at t = 0.006 s, the left foot tipped onto its heel and
-    inner edges (17 deg)."""
-    sim = Simulator(hm, sc, engine="mujoco", compiled=False)
+    inner edges (17 deg).  The same on the engine's compiled ground reads (``compiled=None``: the thesis controller
+    and the engine compiled) and on the NumPy reference path (False)."""
+    sim = Simulator(hm, sc, engine="mujoco", compiled=compiled)
+    assert sim.engine.compiled is (compiled is None)
     r = sim.run(t_end=1.0)
     assert not r.completed
     s = summarize(r, sc.name, "mujoco")

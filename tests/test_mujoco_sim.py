@@ -106,11 +106,13 @@ def test_bad_input_and_divergence(hm: HumanoidModel, sim: MujocoSim, q0: np.ndar
     assert sim.time == t_good
 
 
-def test_hold_and_advance_are_step(hm: HumanoidModel, q0: np.ndarray, tmp_path, monkeypatch) -> None:
+@pytest.mark.parametrize("compiled", [None, False])
+def test_hold_and_advance_are_step(hm: HumanoidModel, q0: np.ndarray, tmp_path, monkeypatch, compiled) -> None:
     """hold(tau) then advance(1) and advance(2) = step(tau, 3 ms), bit for bit (what the engine does to read the
-    contact forces after a control update's first MuJoCo step); advance checks as step does."""
+    contact forces after a control update's first MuJoCo step); advance checks as step does; the same with the
+    compiled state and torque maps (None) and with StateMap's (False)."""
     monkeypatch.chdir(tmp_path)  # MuJoCo appends its warnings to MUJOCO_LOG.TXT in the working directory
-    a, b = MujocoSim(hm), MujocoSim(hm)
+    a, b = MujocoSim(hm, compiled=compiled), MujocoSim(hm, compiled=compiled)
     ctrl = StandingController(hm, q0, 1e-3)
     for s in (a, b):
         s.set_state(q0, np.zeros(hm.model.nv))

@@ -17,8 +17,9 @@ ENGINE_NAMES = ("pinocchio", "thesis", "mujoco")
 
 def make_engine(name: str, hm: Any, scenario: Any, traj: Any, compiled: bool | None = None, **options: Any) -> Any:
     """The engine called ``name`` for one run (``compiled``: the weld engine's compiled integration, see
-    :class:`.weld.WeldEngine`; ``options``: settings of the MuJoCo engine, :class:`.mujoco.MujocoEngineSettings`
-    fields, e.g. ``control_period_s=0.001``)."""
+    :class:`.weld.WeldEngine`, and the MuJoCo engine's compiled ground reads, :class:`.mujoco.MujocoEngine`;
+    ``options``: settings of the MuJoCo engine, :class:`.mujoco.MujocoEngineSettings` fields, e.g.
+    ``control_period_s=0.001``)."""
     if options and name != "mujoco":
         raise ValueError(f"engine {name!r} takes no options, got {sorted(options)}")
     if name == "pinocchio":
@@ -32,7 +33,7 @@ def make_engine(name: str, hm: Any, scenario: Any, traj: Any, compiled: bool | N
     if name == "mujoco":
         from humanoid_sim.engines.mujoco import MujocoEngine
 
-        return MujocoEngine(hm, scenario, traj, **options)
+        return MujocoEngine(hm, scenario, traj, compiled=compiled, **options)
     raise ValueError(f"engine: {name!r} is not one of {', '.join(ENGINE_NAMES)}")
 
 

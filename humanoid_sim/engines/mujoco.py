@@ -48,7 +48,13 @@ contact set holds (what the controller assumes; the contact audit reads it); ``d
 ``drift_orientation`` = how far the phase's held bodies are from their anchors (m / rad; the weld engine's drift
 is the same measure: there it is the welds' numerical drift, here the real feet's slip and tilt against the weld
 the controller assumes); ``dynamics_residual`` = ||RNEA(q, v, a) - tau - tau_contact||_inf with Pinocchio's RNEA,
-MuJoCo's acceleration and MuJoCo's constraint forces (a check that both engines describe the same robot).
+MuJoCo's acceleration and MuJoCo's constraint forces (a check that both engines describe the same robot).  A step
+keeps what these need from MuJoCo (acceleration, constraint forces, the contact wrenches: :meth:`MujocoEngine._record`)
+and :meth:`MujocoEngine.build_log` derives the Pinocchio quantities after the run.
+
+Cost: the ground reads at every control update (:mod:`humanoid_sim.mujoco.ground`) and the step's contact wrenches
+are compiled (:mod:`humanoid_sim.mujoco.compiled`, numba) unless ``compiled=False`` (``walk.py --no-kernel``) or
+numba is missing; both paths give the same numbers to the bit (``tests/test_mujoco_compiled.py``).
 
 summary.json gains (``run_info``): ``fell``, ``fall_time_s``, ``fall_reason``, ``foot_slip_max_m`` (largest
 horizontal travel of a sole box's corners while that box stays loaded, over both feet and the whole run),
@@ -63,6 +69,7 @@ import math
 from dataclasses import dataclass, fields, replace
 from typing import Any, Callable
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 
@@ -71,8 +78,9 @@ from humanoid_sim.contact import record_anchors
 from humanoid_sim.controllers.base import Command, Observation
 from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
 from humanoid_sim.model import FOOT_BODY, TOE_BODY, HumanoidModel
-from humanoid_sim.mujoco.contact import (FootContact, FootLoad, _cross, SlipMeter, foot_contacts, foot_loads, sole_cop,
-                                         sole_corners, sole_tilt)
+from humanoid_sim.mujoco import compiled as mjc
+from humanoid_sim.mujoco.contact import FootContact, _cross, _tables, foot_contacts, sole_cop, sole_tilt
+from humanoid_sim.mujoco.ground import GroundMeter, ReferenceGroundMeter, end_loads, trunk_tilt
 from humanoid_sim.mujoco.model import MujocoModelError, MujocoSettings
 from humanoid_sim.mujoco.sim import MujocoSim, MujocoSimError
 from humanoid_sim.phases import Phase
@@ -83,10 +91,10 @@ from humanoid_sim.selector import PhaseSelector, SimulationError, all_finite
 FEET = ("R", "L")
 FOOT_NAME = {"R": "right", "L": "left"}
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-
-
-_NO_CORNERS = np.zeros((4, 3))
-"""What :meth:`MujocoEngine._measure` hands a slip meter for a box that does not support (it reads no corners)."""
+_STANCE = {None: -1, "R": 0, "L": 1}
+_NEAR = 1e-9
+"""rad: a libm tilt (:class:`GroundMeter`) this close to a fall threshold is recomputed by NumPy, whose value the
+tests compare (libm's and NumPy's arctan2 agree to a few units in the last place, ~1e-16 rad)."""
 
 
 class MujocoFall(SimulationError):
@@ -130,14 +138,19 @@ class MujocoEngine:
 
     Engine interface (:class:`humanoid_sim.engines.base.Engine`) plus the optional hooks :meth:`touchdown_signal`,
     :meth:`check` and :meth:`run_info`.  ``settings``: a :class:`MujocoEngineSettings`, or None for the
-    defaults; ``overrides`` replace named fields of it (``MujocoEngine(hm, sc, control_period_s=0.001)``)."""
+    defaults; ``overrides`` replace named fields of it (``MujocoEngine(hm, sc, control_period_s=0.001)``).
+    ``compiled``: the engine's bookkeeping by the compiled functions of :mod:`humanoid_sim.mujoco.compiled` (None =
+    when numba is installed, True = required, False = never: the NumPy reference path, the same numbers): the state
+    and torque maps, and with an elliptic friction cone (the default) the ground reads too (a pyramidal cone's
+    forces are decoded by ``mj_contactForce``: the reference path)."""
 
     name = "mujoco"
     constraints = None
     errors = (MujocoSimError, MujocoModelError)
 
     def __init__(self, hm: HumanoidModel, scenario: Scenario, traj: Any = None,
-                 settings: MujocoEngineSettings | None = None, **overrides: Any) -> None:
+                 settings: MujocoEngineSettings | None = None, compiled: bool | None = None,
+                 **overrides: Any) -> None:
         settings = MujocoEngineSettings() if settings is None else settings
         if not isinstance(settings, MujocoEngineSettings):
             raise MujocoModelError(f"settings: expected a MujocoEngineSettings, got {type(settings).__name__}")
@@ -151,7 +164,9 @@ class MujocoEngine:
         self.traj = traj
         self.model = hm.model
         contact = self.settings.contact or MujocoSettings.from_scenario(scenario)
-        self.sim = MujocoSim(hm, contact)
+        if compiled and not mjc.AVAILABLE:
+            raise MujocoModelError("MujocoEngine(compiled=True): numba is not installed")
+        self.sim = MujocoSim(hm, contact, compiled=compiled)
         self.mm = self.sim.mm
         self.map = self.sim.map
         self.act = Actuators(hm)
@@ -163,17 +178,24 @@ class MujocoEngine:
         self._body = {TOE_BODY[f]: self.mm.foot_bodies[f][0] for f in FEET}
         self._body.update({FOOT_BODY[f]: self.mm.foot_bodies[f][1] for f in FEET})
         self._no_sat = np.zeros(26, dtype=bool)
+        elliptic = self.mm.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+        self.compiled = compiled is not False and mjc.AVAILABLE and elliptic
+        self._group = _tables(self.mm).pair_array
+        self._wrench_bodies = np.array([self._body[b] for b in (1, 2, 3, 4)], dtype=np.intp)  # log rows
         self.q = self.v = None
         self.phase: Phase | None = None
         self.anchors = None
-        self._end: dict[str, FootLoad] = {}
+        self._end = np.zeros(6)       # the loads at the state after the last step (ground.end_loads)
         self._reset_measures()
 
     def _reset_measures(self) -> None:
-        self.slip = {f: (SlipMeter(), SlipMeter()) for f in FEET}  # (toe box, main box)
-        self.tilt_max = 0.0
-        self.stance_tilt_max = 0.0
-        self.penetration_max = 0.0
+        """A new run's ground measures (:attr:`ground`, reading the settings' and the scenario's thresholds now)."""
+        s = self.settings
+        if self.compiled:
+            limits = (s.edge_tilt_rad - _NEAR, self.sc.simulation.fall_height_m, s.trunk_tilt_fall_rad - _NEAR)
+            self.ground = GroundMeter(self.mm, s.contact_force_N, limits)
+        else:
+            self.ground = ReferenceGroundMeter(self.mm, s.contact_force_N)
         self.fall: tuple[float, str] | None = None
 
     # ------------------------------------------------------------------ state
@@ -185,7 +207,8 @@ class MujocoEngine:
         self.phase = phase
         self.anchors = record_anchors(self.model, self.q, phase.contacts)
         self._reset_measures()
-        self._end = self.sim.foot_wrenches()
+        self.sim.forward()
+        end_loads(self.mm, self.sim.data, self._end, self.compiled)
 
     def state_vectors(self) -> tuple[np.ndarray, np.ndarray]:
         return self.q, self.v
@@ -194,13 +217,15 @@ class MujocoEngine:
     def step(self, t: float, h: float, k: int, control: Callable[[Observation], Command],
              checks: PhaseSelector) -> tuple:
         """Advance from t to t + h: h / control_period controller updates, each held for its period.  Returns the
-        log record of the state at t with the first update's torques and the contact forces they produce."""
+        log record of the state at t with the first update's torques and the contact forces they produce (raw:
+        :meth:`build_log` derives the logged kinematics from it after the run)."""
         period = self.settings.control_period_s
         n_ctrl = round(h / period)
         if not (n_ctrl >= 1 and abs(n_ctrl * period - h) <= 1e-9 * max(1.0, h)):
             raise MujocoSimError(f"loop step h = {h!r} s: expected a whole number of control periods "
                                  f"(MujocoEngineSettings.control_period_s = {period:g} s)")
         phase, anchors, sim = self.phase, self.anchors, self.sim
+        data = sim.data
         record: tuple = ()
         q, v = self.q, self.v
         for i in range(n_ctrl):
@@ -213,20 +238,16 @@ class MujocoEngine:
             # one MuJoCo step first: its acceleration and contact forces are those of the state at ti
             sim.hold(tau)
             sim.advance(1)
-            checks.check_acceleration(ti, sim.data.qacc)  # finite iff Pinocchio's a is
-            if i == 0:   # the log's record needs the wrenches; the checks only the loads (FootContact is one)
-                feet = foot_contacts(self.mm, sim.data)
-                a = self.map.a_from_qacc(q, v, sim.data.qacc)
-                record = self._record(phase, q, v, a, cmd, tau, feet)
-            else:
-                feet = foot_loads(self.mm, sim.data)
-            if self._measure(ti, q, feet):
+            checks.check_acceleration(ti, data.qacc)  # finite iff Pinocchio's a is
+            if i == 0:
+                record = self._record(q, v, cmd, tau)
+            if self._measure(ti):
                 break  # a fall: the run ends at this state (check() reports it)
             if self._n_sub > 1:
                 sim.advance(self._n_sub - 1)   # the rest of the control period, tau still held
         self.q, self.v = sim.state()
         sim.forward()
-        self._end = foot_loads(self.mm, sim.data)
+        end_loads(self.mm, data, self._end, self.compiled)
         return record
 
     def _tau(self, q: np.ndarray, cmd: Command) -> np.ndarray:
@@ -236,48 +257,78 @@ class MujocoEngine:
             cmd.tau[:6] = 0.0
         return cmd.tau
 
-    def _record(self, phase: Phase, q: np.ndarray, v: np.ndarray, a: np.ndarray, cmd: Command,
-                tau: np.ndarray, feet: dict[str, FootContact]) -> tuple:
-        """What the log keeps of the state at a step's start (read right after its first MuJoCo step, whose
-        contact forces ``feet`` and acceleration ``a`` are those of that state)."""
-        model, d, data = self.model, self.rec_data, self.sim.data
-        fw = np.empty((2, 6))
-        cop = np.empty((2, 3))
-        bf, bm = np.zeros((4, 3)), np.zeros((4, 3))
+    def _record(self, q: np.ndarray, v: np.ndarray, cmd: Command, tau: np.ndarray) -> tuple:
+        """What the log keeps of the state (q, v) at a step's start, read right after its first MuJoCo step (whose
+        acceleration and contact forces are those of that state): MuJoCo's acceleration and constraint forces,
+        the command, the phase's anchors, and the ground's wrenches on the feet (foot wrench, centre of pressure,
+        body wrenches).  :meth:`_derive` computes the rest after the run."""
+        data = self.sim.data
+        fw, cop = np.empty((2, 6)), np.empty((2, 3))
+        bf, bm = np.empty((4, 3)), np.empty((4, 3))
+        done = False
+        if self.compiled:
+            con = data.contact
+            done = mjc.contact_wrenches(con.geom, con.pos, con.frame, con.dim, con.efc_address, data.efc_force,
+                                        self._group, self.mm.floor_geom, self._wrench_bodies, data.xipos,
+                                        data.xmat, fw, cop, bf, bm)
+        if not done:
+            self._contact_record(fw, cop, bf, bm)
+        qacc = data.qacc.copy()
+        T, T_cmd, sat = cmd.T, cmd.T_cmd, cmd.saturated
+        if T is None:   # the controller gave tau only: the thesis torques now (a failure ends the run with a reason)
+            T = T_cmd = self.act.thesis_torques(q, v, self._acceleration(q, v, qacc), tau)
+            sat = self._no_sat
+        return (q, v, qacc, data.qfrc_constraint.copy(), T, T_cmd, sat, cmd.theta_ddot_cmd, tau.copy(),
+                self.anchors, bf, bm, fw, cop)
+
+    def _acceleration(self, q: np.ndarray, v: np.ndarray, qacc: np.ndarray) -> np.ndarray:
+        """Pinocchio's acceleration at (q, v) from MuJoCo's qacc (:meth:`humanoid_sim.mujoco.state.StateMap.
+        a_from_qacc`)."""
+        return mjc.pin_acceleration(q, v, qacc, self.map.v_gather) if self.compiled else \
+            self.map.a_from_qacc(q, v, qacc)
+
+    def _contact_record(self, fw: np.ndarray, cop: np.ndarray, bf: np.ndarray, bm: np.ndarray) -> None:
+        """:meth:`_record`'s ground wrenches by :func:`foot_contacts` and :meth:`_body_wrenches` (the reference of
+        :func:`humanoid_sim.mujoco.compiled.contact_wrenches`)."""
+        feet = foot_contacts(self.mm, self.sim.data)
+        bf[:] = 0.0
+        bm[:] = 0.0
         for i, f in enumerate(FEET):
             c = feet[f]
             fw[i, :3], fw[i, 3:] = c.force, c.moment
             cop[i] = c.cop                                   # NaN without normal force
             if len(c.points):
                 self._body_wrenches(f, c, bf, bm)
-        # Pinocchio at (q, v, a): task frames, the drift from the anchors, the dynamics residual
-        tau_c = self.map.tau_from_qfrc(q, data.qfrc_constraint)
-        residual = float(np.max(np.abs(pin.rnea(model, d, q, v, a) - tau - tau_c)))
-        pin.forwardKinematics(model, d, q, v)
-        pin.updateFramePlacements(model, d)
-        pos = ori = 0.0
-        for frame, M in self.anchors.placements.items():
-            err = M.actInv(d.oMf[self._frame_id(frame)])
-            x, w = err.translation, pin.log3(err.rotation)
-            pos = max(pos, math.sqrt(x.dot(x)))              # np.linalg.norm's arithmetic, less overhead
-            ori = max(ori, math.sqrt(w.dot(w)))
-        fid = self.fid
-        hip_v = pin.getFrameVelocity(model, d, fid["Pc_17"], LWA).linear.copy()
-        T, T_cmd, sat, thdd_c = cmd.T, cmd.T_cmd, cmd.saturated, cmd.theta_ddot_cmd
-        if T is None:
-            T = T_cmd = self.act.thesis_torques(q, v, a, tau)
-            sat = self._no_sat
+
+    def _derive(self, q: np.ndarray, v: np.ndarray, qacc: np.ndarray, qfrc_c: np.ndarray, T: Any, T_cmd: Any,
+                sat: Any, thdd_c: Any, tau: np.ndarray, anchors: Any) -> tuple:
+        """The logged quantities of a record (:meth:`_record`) that Pinocchio gives at (q, v, a): the acceleration
+        a, the anchors' drift, the dynamics residual and the task frames (and the command's defaults)."""
+        model, d, fid, smap = self.model, self.rec_data, self.fid, self.map
+        a = self._acceleration(q, v, qacc)
         if T_cmd is None:
             T_cmd = T
         if sat is None:
             sat = self._no_sat
         if thdd_c is None:
             thdd_c = np.full(26, np.nan)
+        if self.compiled:
+            residual = mjc.dynamics_residual(pin.rnea(model, d, q, v, a), tau, q, qfrc_c, smap.v_gather)
+        else:
+            residual = float(np.max(np.abs(pin.rnea(model, d, q, v, a) - tau - smap.tau_from_qfrc(q, qfrc_c))))
+        pin.forwardKinematics(model, d, q, v)
+        pin.updateFramePlacements(model, d)
+        pos = ori = 0.0
+        for frame, M in anchors.placements.items():
+            err = M.actInv(d.oMf[self._frame_id(frame)])
+            x, w = err.translation, pin.log3(err.rotation)
+            pos = max(pos, math.sqrt(x.dot(x)))              # np.linalg.norm's arithmetic, less overhead
+            ori = max(ori, math.sqrt(w.dot(w)))
+        hip_v = pin.getFrameVelocity(model, d, fid["Pc_17"], LWA).linear.copy()
         o = d.oMf
-        return (q, v, a, thdd_c, T_cmd, T, sat, tau.copy(), pos, ori, residual,
-                o[fid["Pc_17"]].translation.copy(), hip_v, o[fid["O_17"]].rotation.copy(),
-                o[fid["P_tpR"]].translation.copy(), o[fid["P_tpL"]].translation.copy(),
-                o[fid["O_1"]].rotation.copy(), o[fid["O_2"]].rotation.copy(), bf, bm, fw, cop)
+        return (a, thdd_c, T_cmd, T, sat, pos, ori, residual, o[fid["Pc_17"]].translation.copy(), hip_v,
+                o[fid["O_17"]].rotation.copy(), o[fid["P_tpR"]].translation.copy(),
+                o[fid["P_tpL"]].translation.copy(), o[fid["O_1"]].rotation.copy(), o[fid["O_2"]].rotation.copy())
 
     def _body_wrenches(self, foot: str, c: FootContact, bf: np.ndarray, bm: np.ndarray) -> None:
         """Write into rows ``body - 1`` of bf / bm (4, 3) the ground's force on each of the foot's loaded bodies
@@ -307,57 +358,43 @@ class MujocoEngine:
         return fid
 
     # ------------------------------------------------------------------ ground measures and falls
-    def _measure(self, t: float, q: np.ndarray, feet: dict[str, FootLoad]) -> bool:
-        """Slip, tilt and penetration at the state (t, q) of a control update, whose kinematics and contact forces
-        MuJoCo's data hold (right after the update's first MuJoCo step), ``feet`` the feet's loads there (or their
-        full :class:`FootContact`); True when it is a fall (the first is kept for :meth:`check`)."""
-        s, mm, data = self.settings, self.mm, self.sim.data
-        f_min = s.contact_force_N
-        stance = None if self.phase is None else self.phase.support_foot   # the flat-held foot
-        loaded = []
-        tilts: dict[str, float] = {}
-        for f in FEET:
-            c = feet[f]
-            self.penetration_max = max(self.penetration_max, c.penetration)
-            toe, main = self.slip[f]
-            on = c.normal_toe >= f_min                  # the corners matter only to a supporting box
-            toe.update(f, on, sole_corners(mm, data, f, 0) if on else _NO_CORNERS)
-            on = c.normal_main >= f_min
-            main.update(f, on, sole_corners(mm, data, f, 1) if on else _NO_CORNERS)
-            if on:
-                tilt = tilts[f] = sole_tilt(mm, data, f)
-                self.tilt_max = max(self.tilt_max, tilt)
-                if f == stance:
-                    self.stance_tilt_max = max(self.stance_tilt_max, tilt)
-            if c.normal >= f_min:
-                loaded.append(f)
+    def _measure(self, t: float) -> bool:
+        """Slip, tilt and penetration (:attr:`ground`) at the state at t of a control update, whose kinematics and
+        contact forces MuJoCo's data hold (right after the update's first MuJoCo step); True when it is a fall (the
+        first is kept for :meth:`check`)."""
+        data = self.sim.data
+        code = self.ground.update(data, _STANCE[None if self.phase is None else self.phase.support_foot])
         if self.fall is not None:
             return True
-        R17 = data.xmat[mm.base_body].reshape(3, 3)  # the lower trunk's link frame is O_17 (free joint frame)
-        trunk_tilt = float(np.arctan2(np.hypot(R17[0, 2], R17[1, 2]), R17[2, 2]))
-        hip_z = float(data.xipos[mm.base_body][2])     # Body-17 CoM
+        if not code & 4:              # no fall test can fire (GroundMeter's limits)
+            return False
+        s, mm, out = self.settings, self.mm, self.ground.out
+        loaded = code & 3
         edge = ""
-        if len(loaded) == 1:
-            f = loaded[0]
-            tilt = tilts[f] if f in tilts else sole_tilt(mm, data, f)
-            # the CoP's edges only when the sole tilts (sole_cop costs ~0.1 ms, and this runs at every update)
-            cop = None
-            if tilt > s.edge_tilt_rad:
-                contact = feet[f] if isinstance(feet[f], FootContact) else foot_contacts(mm, data)[f]
-                cop = sole_cop(mm, data, contact, s.edge_tolerance_m)
-            if cop is not None and cop.edges:
-                names = " and ".join(cop.edges)
-                edge = (f"the {FOOT_NAME[f]} foot, the only one on the ground, tipped onto its {names} edge"
-                        f"{'s (a corner)' if len(cop.edges) > 1 else ''} (sole tilt {math.degrees(tilt):.1f} deg, "
-                        f"centre of pressure {1000 * abs(cop.margin):.1f} mm from the edge)")
+        if loaded == 1 or loaded == 2:       # one foot alone carries the robot
+            i = loaded - 1
+            f = FEET[i]
+            # its CoP's edges only when its sole tilts (sole_cop costs ~0.1 ms, and this runs at every update)
+            if out[7 + i] > s.edge_tilt_rad - _NEAR:
+                tilt = sole_tilt(mm, data, f)
+                cop = sole_cop(mm, data, foot_contacts(mm, data)[f], s.edge_tolerance_m) \
+                    if tilt > s.edge_tilt_rad else None
+                if cop is not None and cop.edges:
+                    names = " and ".join(cop.edges)
+                    edge = (f"the {FOOT_NAME[f]} foot, the only one on the ground, tipped onto its {names} edge"
+                            f"{'s (a corner)' if len(cop.edges) > 1 else ''} (sole tilt {math.degrees(tilt):.1f} "
+                            f"deg, centre of pressure {1000 * abs(cop.margin):.1f} mm from the edge)")
         fall_h = self.sc.simulation.fall_height_m
+        hip_z = float(out[10])                           # Body-17 CoM
         if edge:
             self.fall = (t, f"fall at t = {t:.3f} s: {edge}")
         elif hip_z < fall_h:
             self.fall = (t, f"fall at t = {t:.3f} s: hip CoM height {hip_z:.3f} m below {fall_h} m")
-        elif trunk_tilt > s.trunk_tilt_fall_rad:
-            self.fall = (t, f"fall at t = {t:.3f} s: lower trunk tilted {math.degrees(trunk_tilt):.1f} deg from "
-                            f"the vertical (limit {math.degrees(s.trunk_tilt_fall_rad):.0f} deg)")
+        elif out[9] > s.trunk_tilt_fall_rad - _NEAR:
+            tilt = trunk_tilt(mm, data)
+            if tilt > s.trunk_tilt_fall_rad:
+                self.fall = (t, f"fall at t = {t:.3f} s: lower trunk tilted {math.degrees(tilt):.1f} deg from "
+                                f"the vertical (limit {math.degrees(s.trunk_tilt_fall_rad):.0f} deg)")
         return self.fall is not None
 
     def check(self, t: float) -> None:
@@ -367,17 +404,18 @@ class MujocoEngine:
 
     def touchdown_signal(self, foot: str) -> bool:
         """True when ``foot``'s soles carry at least ``contact_force_N`` of normal force at the current state."""
-        return self._end[foot].normal >= self.settings.contact_force_N
+        i = 0 if foot == "R" else 2
+        return self._end[i] + self._end[i + 1] >= self.settings.contact_force_N
 
     def run_info(self) -> dict:
         """For summary.json (SI units): fall, slip, tilt and penetration measures of the run."""
-        slip = max(m.max_slip[f] for f in FEET for m in self.slip[f])
+        g = self.ground
         return {"ground": {"fell": self.fall is not None,
                            "fall_time_s": None if self.fall is None else float(self.fall[0]),
                            "fall_reason": None if self.fall is None else self.fall[1],
-                           "foot_slip_max_m": float(slip), "foot_tilt_max_rad": float(self.tilt_max),
-                           "stance_tilt_max_rad": float(self.stance_tilt_max),
-                           "penetration_max_m": float(self.penetration_max),
+                           "foot_slip_max_m": float(g.slip_max), "foot_tilt_max_rad": float(g.tilt_max),
+                           "stance_tilt_max_rad": float(g.stance_tilt_max),
+                           "penetration_max_m": float(g.penetration_max),
                            "control_period_s": self.settings.control_period_s,
                            "timestep_s": self.sim.timestep}}
 
@@ -410,13 +448,16 @@ class MujocoEngine:
 
     # ------------------------------------------------------------------ logging
     def build_log(self, rows: list[tuple]) -> SimLog:
-        """The log from the loop's rows (t, k, phase, nominal reference, controller hip reference, record)."""
+        """The log from the loop's rows (t, k, phase, nominal reference, controller hip reference, record of
+        :meth:`_record`), the record's kinematics derived here (:meth:`_derive`)."""
         hm = self.hm
         n = len(rows)
         if n == 0:
             return SimLog()
-        (t, k, phase, ref, hip_ctrl, q, v, a, thdd_c, T_cmd, T, sat, tau, pos, ori, res, hip_p, hip_v, R17,
-         toe_R, toe_L, R1, R2, bf, bm, fw, cop) = zip(*rows)
+        (t, k, phase, ref, hip_ctrl, q, v, qacc, qfrc_c, T, T_cmd, sat, thdd_c, tau, anchors, bf, bm, fw,
+         cop) = zip(*rows)
+        derived = [self._derive(*r) for r in zip(q, v, qacc, qfrc_c, T, T_cmd, sat, thdd_c, tau, anchors)]
+        a, thdd_c, T_cmd, T, sat, pos, ori, res, hip_p, hip_v, R17, toe_R, toe_L, R1, R2 = zip(*derived)
         Q, V, A = np.array(q), np.array(v), np.array(a)
         fw = np.array(fw)
         thesis = lambda X: hm.theta_sign * X[:, hm.theta_v_idx]  # noqa: E731 -- v-ordered arrays -> thesis
@@ -427,18 +468,22 @@ class MujocoEngine:
         ok = ftot[:, 2] > 1e-9
         zmp[ok] = np.stack([-mtot[ok, 1] / ftot[ok, 2], mtot[ok, 0] / ftot[ok, 2], np.zeros(ok.sum())], axis=1)
         yaw0 = yaw_of(hm.spec.C0)
+        hip_R, hip_R_ref = np.array(R17), np.array([r.hip_R for r in ref])
+        # yaw_of of every row in one np.arctan2 each (the same function on the same numbers: the same angles)
+        heading = np.arctan2(hip_R[:, 1, 0].copy(), hip_R[:, 0, 0].copy()).tolist()
+        heading_ref = np.arctan2(hip_R_ref[:, 1, 0].copy(), hip_R_ref[:, 0, 0].copy()).tolist()
         yaw, yaw_ref = np.empty(n), np.empty(n)
         prev, prev_ref = yaw0, yaw0
         for i in range(n):
-            prev = yaw[i] = unwrap_to(yaw_of(R17[i]), prev)
-            prev_ref = yaw_ref[i] = unwrap_to(yaw_of(ref[i].hip_R), prev_ref)
+            prev = yaw[i] = unwrap_to(heading[i], prev)
+            prev_ref = yaw_ref[i] = unwrap_to(heading_ref[i], prev_ref)
         cols = dict(
             t=np.array(t), phase=np.array(k), basic_phase=np.array([BASIC[ph] for ph in phase]), q=Q, v=V,
             theta=hm.theta_sign * Q[:, hm.theta_q_idx], theta_dot=thesis(V), theta_ddot=thesis(A),
             theta_ddot_cmd=np.array(thdd_c), T_cmd=np.array(T_cmd), T=np.array(T), saturated=np.array(sat),
             tau=np.array(tau), hip_p=np.array(hip_p), hip_p_ref=np.array([r.hip_p for r in ref]),
             hip_p_ctrl_ref=np.array(hip_ctrl), hip_v=np.array(hip_v), hip_v_ref=np.array([r.hip_v for r in ref]),
-            hip_R=np.array(R17), hip_R_ref=np.array([r.hip_R for r in ref]), hip_yaw=yaw, hip_yaw_ref=yaw_ref,
+            hip_R=hip_R, hip_R_ref=hip_R_ref, hip_yaw=yaw, hip_yaw_ref=yaw_ref,
             toe_R_p=np.array(toe_R), toe_R_p_ref=np.array([r.toe_R_p for r in ref]), toe_L_p=np.array(toe_L),
             toe_L_p_ref=np.array([r.toe_L_p for r in ref]), foot_R_R=np.array(R1), foot_L_R=np.array(R2),
             body_force=np.array(bf), body_moment=np.array(bm), foot_wrench=fw, cop=np.array(cop),

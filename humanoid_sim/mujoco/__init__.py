@@ -5,6 +5,8 @@
 - :mod:`.state` is the one explicit map between Pinocchio's (q, v, tau) and MuJoCo's (qpos, qvel, qfrc / ctrl);
 - :mod:`.contact` reads the feet's ground wrenches, CoP, normal forces and contact points from
   ``mujoco.mj_contactForce`` and measures slip, tilt and penetration;
+- :mod:`.ground` keeps those measures over a run at every control update (the engine's meters), :mod:`.compiled`
+  the numba forms of the engine's per-update and per-step reads (the same numbers as :mod:`.contact`'s);
 - :mod:`.sim` is :class:`MujocoSim`, the engine object (set/get state in Pinocchio's convention, zero-order-hold
   torque steps);
 - :mod:`.standing` is the joint-space PD + gravity-compensation controller of the standing experiment;

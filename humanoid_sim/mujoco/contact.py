@@ -95,12 +95,14 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class _SoleTables:
     """Lookup tables of a model's soles.  Per geom id: ``foot`` the foot index (0 'R', 1 'L', -1 not a sole),
     ``box`` the sole box (0 toe, 1 main body).  ``pair_group[g1][g2]`` (nested lists, read per contact in Python):
-    the sole's group 2 foot + box when the geom pair (g1, g2) is a sole and the floor (either order), else -1.
-    Per sole geom id, ``corners`` (4, 3): its bottom corners in its own frame (m)."""
+    the sole's group 2 foot + box when the geom pair (g1, g2) is a sole and the floor (either order), else -1;
+    ``pair_array`` the same as an (ngeom, ngeom) array (for :mod:`.compiled`).  Per sole geom id, ``corners``
+    (4, 3): its bottom corners in its own frame (m)."""
 
     foot: np.ndarray
     box: np.ndarray
     pair_group: list[list[int]]
+    pair_array: np.ndarray
     corners: dict[int, np.ndarray]
 
 
@@ -119,7 +121,7 @@ def _tables(mm: MujocoModel) -> _SoleTables:
                 foot[g], box[g] = i, j
                 pair_group[mm.floor_geom, g] = pair_group[g, mm.floor_geom] = 2 * i + j
                 corners[g] = signs * mm.model.geom_size[g]
-        tables = _SoleTables(foot, box, pair_group.tolist(), corners)
+        tables = _SoleTables(foot, box, pair_group.tolist(), pair_group, corners)
         mm._sole_tables = tables
     return tables
 

@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 from humanoid_sim.model import HumanoidModel
+from humanoid_sim.mujoco import compiled as mjc
 from humanoid_sim.mujoco.contact import FootContact, foot_contacts
 from humanoid_sim.mujoco.model import MujocoModel, MujocoSettings, build_model
 from humanoid_sim.mujoco.state import StateMap
@@ -38,10 +39,15 @@ class MujocoSimError(RuntimeError):
 
 
 class MujocoSim:
-    """The thesis humanoid in MuJoCo, driven by joint torques (see the module docstring)."""
+    """The thesis humanoid in MuJoCo, driven by joint torques (see the module docstring).
 
-    def __init__(self, hm: HumanoidModel, settings: MujocoSettings | None = None) -> None:
+    ``compiled``: map the state and the torques with :mod:`.compiled`'s functions (None = when numba is installed,
+    False = never: :class:`.state.StateMap`'s NumPy maps, the same numbers)."""
+
+    def __init__(self, hm: HumanoidModel, settings: MujocoSettings | None = None,
+                 compiled: bool | None = None) -> None:
         self.hm = hm
+        self.compiled = compiled is not False and mjc.AVAILABLE
         self.mm: MujocoModel = build_model(hm, settings)
         self.model = self.mm.model
         self.data = mujoco.MjData(self.model)
@@ -73,8 +79,11 @@ class MujocoSim:
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) in Pinocchio's convention (copies)."""
-        qpos = self.data.qpos.copy()
-        return self.map.q_from_qpos(qpos), self.map.v_from_qvel(qpos, self.data.qvel)
+        d, smap = self.data, self.map
+        if self.compiled:
+            return mjc.pin_state(d.qpos, d.qvel, smap.q_gather, smap.v_gather)
+        qpos = d.qpos.copy()
+        return smap.q_from_qpos(qpos), smap.v_from_qvel(qpos, d.qvel)
 
     # ------------------------------------------------------------------ stepping
     def substeps(self, h: float) -> int:
@@ -98,6 +107,9 @@ class MujocoSim:
     def hold(self, tau: np.ndarray) -> None:
         """Put the joint rows of ``tau`` (Pinocchio v order, N m) on the motors, for the following :meth:`advance`
         calls; raises :class:`MujocoSimError` if one is not finite."""
+        if self.compiled and type(tau) is np.ndarray and tau.dtype == np.float64 and tau.shape == (self.map.nv,):
+            if mjc.put_ctrl(tau, self.map.ctrl_gather, self.data.ctrl):
+                return
         ctrl = self.map.ctrl_from_tau(tau)
         if not np.isfinite(ctrl).all():
             raise MujocoSimError(f"tau has non-finite joint torques at t = {self.time:.4f} s")
@@ -107,25 +119,27 @@ class MujocoSim:
         """Advance n MuJoCo timesteps (n >= 1) with the controls held (:meth:`hold`): :meth:`step`'s checks."""
         if not (isinstance(n, int) and n >= 1):
             raise MujocoSimError(f"advance: n = {n!r} steps, expected an integer >= 1")
-        m, d = self.model, self.data
-        before = self._warnings[_BAD_ROWS].tolist()
+        m, d, warnings = self.model, self.data, self._warnings
+        before = warnings.tobytes()       # all counters: only _BAD's rows matter, the others rarely change
         t_start = d.time
         qpos, qvel = self._saved
         np.copyto(qpos, d.qpos)
         np.copyto(qvel, d.qvel)
         t_end = t_start + n * self.timestep
         mujoco.mj_step(m, d, n)
+        self._fresh = False
         # MuJoCo answers a non-finite or huge qpos/qvel/qacc with a warning and a reset of the data (time back to
         # 0), and a huge control with a warning and ctrl = 0: either way the run is no longer the one asked for.
-        after = self._warnings[_BAD_ROWS].tolist()
-        if after != before or abs(d.time - t_end) > 1e-6 or not np.isfinite(d.qvel).all():
-            hit = [w.name for w, b, a in zip(_BAD, before, after) if a != b]
+        if warnings.tobytes() == before and abs(d.time - t_end) <= 1e-6 and \
+                (mjc.all_finite(d.qvel) if self.compiled else np.isfinite(d.qvel).all()):
+            return
+        was = np.frombuffer(before, dtype=warnings.dtype)
+        hit = [w.name for w, row in zip(_BAD, _BAD_ROWS) if warnings[row] != was[row]]
+        if hit or abs(d.time - t_end) > 1e-6 or not np.isfinite(d.qvel).all():
             d.time, d.qpos[:], d.qvel[:] = t_start, qpos, qvel  # keep the last good state for the caller
-            self._fresh = False
             raise MujocoSimError(f"MuJoCo: {', '.join(hit) or 'non-finite state'} in the step from "
                                  f"t = {t_start:.4f} s (the state diverged or a torque was huge); the state is "
                                  "left at the start of the step")
-        self._fresh = False
 
     def forward(self) -> None:
         """Bring MuJoCo's derived quantities (kinematics, contacts, contact forces) to the current state."""
