@@ -167,6 +167,14 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
     finally:
         if running is not None:
             running.stop()
+    if args.engine == "mujoco" and not args.no_kernel:
+        from humanoid_sim.mujoco import compiled as mujoco_compiled
+
+        if not mujoco_compiled.cache_ready():   # before the progress bar: it would sit at 0 for ~5 s
+            if not args.quiet:
+                print("walk.py: compiling the MuJoCo engine's ground reads (first run after an install: ~5 s, "
+                      "cached for later runs)", file=sys.stderr)
+            mujoco_compiled.build(hm, scenario)
     from humanoid_sim.engines.oracle import ThesisWalkError
     from humanoid_sim.gait import GaitError
 

@@ -183,12 +183,28 @@ def _build_kernel(to_run) -> None:
                 print(f"{PROG}: warning: {exc}; the workers compile it instead", file=sys.stderr)
 
 
+def _build_mujoco(doc: dict) -> None:
+    """Fill numba's cache of the MuJoCo engine's compiled ground reads once, here, by a short walk of one of the
+    sweep's scenarios (``humanoid_sim.mujoco.compiled.build``), before the local workers start."""
+    from humanoid_sim.mujoco import compiled
+
+    if compiled.cache_ready():
+        return
+    from humanoid_sim.model import load_model
+    from humanoid_sim.scenario import parse_scenario
+
+    print(f"{PROG}: compiling the MuJoCo engine's ground reads (~5 s, cached for later runs)", file=sys.stderr)
+    compiled.build(load_model(), parse_scenario(doc, "<sweep walk>"))
+
+
 def _run(args: argparse.Namespace, spec, to_run, engine: str, out: Path, sink, workers: int):
     """Start or reach the cluster, write the scenario files, run the walks; the RunStats, or an exit status."""
     from humanoid_sim.sweep import runner
 
     if args.scheduler is None and engine in ("pinocchio", "mujoco"):
         _build_kernel(to_run)
+    if args.scheduler is None and engine == "mujoco":
+        _build_mujoco(to_run[0].doc)
     with contextlib.ExitStack() as stack:
         try:
             client = stack.enter_context(runner.dask_client(workers=workers if args.scheduler is None else None,
