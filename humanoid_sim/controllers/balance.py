@@ -385,8 +385,8 @@ class BalanceController:
         self._upper[16:] = True                                     # theta18..theta27 (eq. 4.5)
         s = self.settings
         self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
-        self._lift_k, self._lift0 = -1, 0.0
-        self._dsp_k, self._dsp_t0 = -1, 0.0     # the double support (its phase index) and its start, plan's clock, s     # the swing (its phase index) and its heel lift at lift-off, rad
+        self._lift_k, self._lift0 = -1, 0.0     # the swing (its phase index) and its heel lift at lift-off, rad
+        self._dsp_k, self._dsp_t0 = -1, 0.0     # the double support (its phase index) and its start, plan's clock, s
         self._box_cache: dict[tuple, np.ndarray] = {}
         self._task_buffers: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         # the components linear in tau (revolute and spherical joints; the shoulders' are not) and their bounds
