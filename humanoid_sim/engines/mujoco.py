@@ -54,7 +54,8 @@ and :meth:`MujocoEngine.build_log` derives the Pinocchio quantities after the ru
 
 Cost: the ground reads at every control update (:mod:`humanoid_sim.mujoco.ground`) and the step's contact wrenches
 are compiled (:mod:`humanoid_sim.mujoco.compiled`, numba) unless ``compiled=False`` (``walk.py --no-kernel``) or
-numba is missing; both paths give the same numbers to the bit (``tests/test_mujoco_compiled.py``).
+numba is missing; both paths give the same numbers (to the bit on the development machine's builds; the tests
+allow a few units in the last place where pinocchio's or NumPy's own rounding enters: ``tests/test_mujoco_compiled.py``).
 
 summary.json gains (``run_info``): ``fell``, ``fall_time_s``, ``fall_reason``, ``foot_slip_max_m`` (largest
 horizontal travel of a sole box's corners while that box stays loaded, over both feet and the whole run),

@@ -6,7 +6,7 @@ functions compute the same numbers in the same order of floating-point operation
 ``tests/test_mujoco_compiled.py`` checks that at every update of real walks), without the ~50 small NumPy calls
 per read.  Where NumPy's order is its libraries' (Eigen's quaternion norm, a BLAS matrix-vector product), it was
 measured on this machine's builds (pinocchio's and NumPy's wheels): another build could differ in the last bit,
-which that test would show.
+which that test allows (4 ulp) where those libraries' rounding enters.
 
 - :func:`contact_loads`: each sole box's normal force and each foot's penetration (:func:`.contact.foot_loads`);
 - :func:`ground_update`: those loads, the running penetration maximum, and a copy of what the slip and tilt
