@@ -73,8 +73,8 @@ moving the hip on and starting the next swing part-way along its path.
 Speed: one call is the references (Python, the trajectory's), Pinocchio's joint Jacobians with their time
 variation, M and h, one compiled call that does the rest up to the QP (placements, frame motions, the weld and lock
 rows, the task rows, the QP's matrices: ``kernel.compiled.balance_stage``, the twin of :meth:`_qp_reference`), DAQP,
-and a compiled call for tau and the thesis torques.  Measured on sim 1's zmp walk on welds: ~160 us a call, of
-which DAQP ~40 us; the reference path ~300 us.  ``tests/test_balance_compiled.py`` runs both on every call of walks
+and a compiled call for tau and the thesis torques.  Measured on sim 1's zmp walk on welds: ~140 us a call, of
+which DAQP ~40 us; the reference path ~320 us.  ``tests/test_balance_compiled.py`` runs both on every call of walks
 on welds and on MuJoCo: the same commands to ~1e-9.
 Units: SI (m, rad, N, N m, s).
 """
@@ -277,9 +277,10 @@ def qp_numpy(A: np.ndarray, w: np.ndarray, b: np.ndarray, M_upper: np.ndarray, h
     |tau[6:]|^2 (tau[6:] = Tx x + h[6:]: in double support the feet can squeeze or twist each other through the
     ground without changing the motion; the smallest torques pick the split) and ``unload`` on each weld's normal
     force.  Equalities: the base rows of M a + h - J^T lam = 0 (no actuator there); no lock multiplier but the toe
-    box's share lam_lock = j_toe . W_t (the toe motor holds the rest); J a = -gamma.  Inequalities Cin x >= 0, 11 rows
+    box's share lam_lock = j_toe . W_t (the toe motor holds the rest); J a = -gamma.  Inequalities C x >= 0, 11 rows
     a box: a flat foot's heel box carries W_m = lam_weld - X W_t (main-body frame), its toe box W_t (toe-body frame);
-    a foot held by its toe alone, lam_weld on its toe box."""
+    a foot held by its toe alone, lam_weld on its toe box.  Returns (G, g, C, lo, ne, cop, M, Tx) as balance_qp: the
+    equality rows then the inequality rows in one C, as DAQP takes them."""
     nv, m, ns = M_upper.shape[0], J.shape[0], len(split_weld)
     n = nv + m + 6 * ns
     M = M_upper.copy()                       # crba fills the upper triangle: mirror it
@@ -327,7 +328,8 @@ def qp_numpy(A: np.ndarray, w: np.ndarray, b: np.ndarray, M_upper: np.ndarray, h
             blk[:, cw] = toe if kind == 1 else full
             blocks.append(blk)
             cop += [False] * 7 + [True] * 4
-    return G, g, Ceq, beq, np.vstack(blocks), np.array(cop, dtype=bool), M, Tx
+    return G, g, np.vstack([Ceq] + blocks), np.concatenate([beq, np.zeros(len(cop))]), len(beq), \
+        np.array(cop, dtype=bool), M, Tx
 
 
 class BalanceController:
@@ -642,9 +644,7 @@ class BalanceController:
                        np.array([sp[1] for sp in splits], dtype=np.int64), X,
                        np.array([sp[3] for sp in splits]).reshape(ns, 6), *boxes, s.w_acc, s.w_force, s.w_torque,
                        unload)
-        G, g, Ceq, beq, Cin, cop, M, Tx = out       # stacked as the compiled balance_qp gives them (DAQP's form)
-        return (G, g, np.vstack([Ceq, Cin]), np.concatenate([beq, np.zeros(len(Cin))]), len(beq), cop, M, Tx, rows.J,
-                X, h, (d, None, 0.0, 0.0))
+        return out + (rows.J, X, h, (d, None, 0.0, 0.0))
 
     def _qp_compiled(self, obs: Observation, tg: "_Targets", kinds: np.ndarray, boxes: tuple,
                      unload: np.ndarray) -> tuple:
@@ -659,7 +659,6 @@ class BalanceController:
         pin.nonLinearEffects(model, d, q, v)
         h = d.nle.copy()
         st = self._stage
-        fidx = st.tree.frame_index
         p_ref, v6_ref, R_ref, a6_ref = tg.hip
         tgt = self._tgt
         tgt[0:3], tgt[3:9], tgt[9:18], tgt[18:24] = p_ref, v6_ref, R_ref.ravel(), a6_ref

@@ -1152,7 +1152,7 @@ def advance_on_support(q, v, coeffs, vs, accs, h, anchor_R, anchor_p, lock_ancho
 def balance_qp(A, w, b, M_upper, h, J, rhs_shift, nw, box_kind, split_weld, split_lock, X, jt, heel, toe, full,
                w_acc, w_force, w_torque, unload):
     """The QP of ``controllers.balance.BalanceController`` from its task rows and the phase's constraint rows: the
-    compiled twin of ``BalanceController._qp_numpy`` (same formulas; sums in loop order).
+    compiled twin of ``controllers.balance.qp_numpy`` (same formulas; sums in loop order).
 
     Inputs: task rows A (r, nv), weights w (r,), targets b (r,); M_upper (crba's upper triangle), h (nv,); the
     constraint rows J (m, nv) with ``rhs_shift`` (m,), of which the first ``nw`` are weld rows (6 per weld) and the rest
@@ -1284,7 +1284,7 @@ def balance_stage(q, v, J, dJ, M_upper, h, parents, axis, idx_q, jR, jp, support
                   theta_q, theta0, fneed, R, p, fR, fpos, motion, vel, welds, anchor_R, anchor_p, lock_q, lock_v,
                   lock_anchor, kp_c, kd_c, mode, fi, tgt, gains, w_joint, heel_lift_rad, box_kind, split_toe, heel,
                   toe, full, w_acc, w_force, w_torque, unload):
-    """The balance controller's QP at (q, v): the compiled twin of ``BalanceController._call_reference`` up to the QP
+    """The balance controller's QP at (q, v): the compiled twin of ``BalanceController._qp_reference``
     (``controllers.balance``: task rows, the phase's weld and lock rows, the heel / toe box split, the QP of
     :func:`balance_qp`).  J, dJ: Pinocchio's computeJointJacobiansTimeVariation at (q, v); M_upper, h: crba and
     nonLinearEffects; tree constants and work buffers as :func:`_stage_state`; welds / anchors / lock / kp_c, kd_c as
@@ -1393,13 +1393,10 @@ def balance_stage(q, v, J, dJ, M_upper, h, parents, axis, idx_q, jR, jp, support
         X[s, 3:, :3] = mm(sk, Rrel)
         c = lock_v
         pos = fpos[ft]
-        lin = np.empty(3)
         ang = np.empty(3)
         for k in range(3):
             ang[k] = J[3 + k, c]
-        lin[0] = J[0, c] + (J[4, c] * pos[2] - J[5, c] * pos[1])
-        lin[1] = J[1, c] + (J[5, c] * pos[0] - J[3, c] * pos[2])
-        lin[2] = J[2, c] + (J[3, c] * pos[1] - J[4, c] * pos[0])
+        lin = J[:3, c] + cross(ang, pos)             # the toe joint's column at the toe frame's origin
         jl = mtv(fR[ft], lin)
         ja = mtv(fR[ft], ang)
         for k in range(3):
