@@ -201,32 +201,16 @@ class ZmpPreviewTrajectory:
 
     def hip_reference(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Body-17 CoM (3,), [linear; angular] velocity (6,), orientation (3x3) at global t clamped to ``phase``."""
-        k = self._check(phase)
-        tc = self._clamp(k, t)
-        p, v, _ = self._hip(tc)
-        if k == 0:
-            yaw, yawd, _ = eval_cubic(self._lead_yaw, tc - self.phases[0].t_start)
-            R = _rz(yaw)
-        else:
-            _, v6, R = self.inner.hip_reference(k - 1, t - self.lead)
-            yawd = v6[5]
-        return p, np.array((v[0], v[1], 0.0, 0.0, 0.0, yawd)), R
+        return self.hip_targets(phase, t)[:3]
 
     def hip_acceleration(self, phase: int, t: float) -> np.ndarray:
         """Body-17 CoM [linear; angular] acceleration (6,) at global t clamped to ``phase``: the planned hip's (the
         cubic Hermite's second derivative) and the yaw's."""
-        k = self._check(phase)
-        tc = self._clamp(k, t)
-        _, _, a = self._hip(tc)
-        if k == 0:
-            yawdd = eval_cubic(self._lead_yaw, tc - self.phases[0].t_start)[2]
-        else:
-            yawdd = self.inner.hip_acceleration(k - 1, t - self.lead)[5]
-        return np.array((a[0], a[1], 0.0, 0.0, 0.0, yawdd))
+        return self.hip_targets(phase, t)[3]
 
     def hip_targets(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`hip_reference` and :meth:`hip_acceleration` at one time from one evaluation: position (3,),
-        velocity (6,), orientation (3x3), acceleration (6,); the same numbers."""
+        velocity (6,), orientation (3x3), acceleration (6,) (both queries are read from it)."""
         k = self._check(phase)
         tc = self._clamp(k, t)
         p, v, a = self._hip(tc)

@@ -426,26 +426,17 @@ class ReferenceTrajectory:
     def hip_reference(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The controller's hip query: Body-17 CoM position (3,), [linear; angular] velocity (6,) and
         orientation (3x3) at global time t clamped to ``phase`` (as ``sample_global(t, phase)``, hip only)."""
-        ph, sg, tc = self._clamped(phase, t)
-        sp, cp, thd, _, yaw, yawd, _ = self._hip_scalars(ph, sg, tc)
-        R = sg.R
-        p = np.array((sg.Ox + sg.s * R * sp, sg.Oy - sg.s * R * cp, self.hip_z))
-        v6 = np.array((R * thd * cp, R * thd * sp, 0.0, 0.0, 0.0, yawd))
-        return p, v6, _rz(yaw)
+        return self.hip_targets(phase, t)[:3]
 
     def hip_acceleration(self, phase: int, t: float) -> np.ndarray:
         """Body-17 CoM [linear; angular] acceleration (6,), world frame, m/s^2 and rad/s^2, at global time t clamped
         to ``phase``: the time derivative of :meth:`hip_reference`'s velocity (for controllers that feed the
         reference acceleration forward; the thesis's 5.1 does not use it)."""
-        ph, sg, tc = self._clamped(phase, t)
-        sp, cp, thd, thdd, _, _, yawdd = self._hip_scalars(ph, sg, tc)
-        R, s = sg.R, sg.s
-        return np.array((R * thdd * cp - s * R * thd * thd * sp, R * thdd * sp + s * R * thd * thd * cp, 0.0,
-                         0.0, 0.0, yawdd))
+        return self.hip_targets(phase, t)[3]
 
     def hip_targets(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`hip_reference` and :meth:`hip_acceleration` at one time from one evaluation: position (3,),
-        velocity (6,), orientation (3x3), acceleration (6,); the same numbers."""
+        velocity (6,), orientation (3x3), acceleration (6,) (both queries are read from it)."""
         ph, sg, tc = self._clamped(phase, t)
         sp, cp, thd, thdd, yaw, yawd, yawdd = self._hip_scalars(ph, sg, tc)
         R, s = sg.R, sg.s
