@@ -27,8 +27,8 @@ Prints one JSON object:
   (the engine's own work per control update: state map, contact forces, ground measures; from a 2 s standing run
   minus its controller and MuJoCo steps) and ``projected_real_time_factor`` = 1 / (rate x (controller + engine) +
   1000 steps x mj_step) for a walk that does not fall; ``zmp_preview``: the scenario's zmp gait (below) walked on
-  MuJoCo by its balance controller (median of up to 3 runs): the real-time factor of a walk that stands (issue #15);
-- ``gaits``: the same scenario with ``gait: {hip_reference: zmp_preview}`` added (issue #13) on the fast engine:
+  MuJoCo by its balance controller (median of up to 3 runs): the real-time factor of a walk that stands;
+- ``gaits``: the same scenario with ``gait: {hip_reference: zmp_preview}`` added on the fast engine:
   its ``real_time_factor`` (median of the repeats, in this same process, planning excluded), ``plan_s`` (building
   the trajectory: ZMP preview and multibody correction, median), the simulated time and how it ended, and
   ``ratio_to_thesis`` = its real-time factor / the thesis gait's (``real_time_factor`` above);
@@ -49,9 +49,9 @@ import time
 from pathlib import Path
 
 t_import0 = time.perf_counter()
-from humanoid_sim.model import load_model  # noqa: E402
-from humanoid_sim.scenario import load_scenario  # noqa: E402
-from humanoid_sim.simulate import Simulator  # noqa: E402
+from humanoid_sim.robot.model import load_model  # noqa: E402
+from humanoid_sim.scenario.schema import load_scenario  # noqa: E402
+from humanoid_sim.sim.simulate import Simulator  # noqa: E402
 
 IMPORT_S = time.perf_counter() - t_import0
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,18 +62,23 @@ ROOT = Path(__file__).resolve().parents[1]
 # Logging = the per-step record taken at the first stage plus the post-loop pass that derives the logged signals
 # (ground reactions, thesis coordinates, unwrapped yaws) in the engine's build_log.
 PARTS = {
-    "trajectory": [("humanoid_sim/trajectory/generator.py", "sample_global"),
-                   ("humanoid_sim/trajectory/generator.py", "hip_reference"),
-                   ("humanoid_sim/trajectory/generator.py", "toe_reference")],
-    "controller": [("humanoid_sim/command.py", "compute"), ("humanoid_sim/kernel/stage.py", "controller")],
-    "dynamics": [("humanoid_sim/contact/forward.py", "prepare"), ("humanoid_sim/contact/forward.py", "inverse_prepared"),
-                 ("humanoid_sim/contact/forward.py", "forward_prepared"),
-                 ("humanoid_sim/actuators.py", "thesis_torques"), ("humanoid_sim/actuators.py", "torque_map"),
-                 ("humanoid_sim/controllers/thesis.py", "_dynamics_pass"), ("humanoid_sim/kernel/stage.py", "dynamics"),
+    "trajectory": [("humanoid_sim/references/chapter3/generator.py", "sample_global"),
+                   ("humanoid_sim/references/chapter3/generator.py", "hip_reference"),
+                   ("humanoid_sim/references/chapter3/generator.py", "toe_reference")],
+    "controller": [("humanoid_sim/controllers/thesis/command.py", "compute"),
+                   ("humanoid_sim/controllers/thesis/stage.py", "controller")],
+    "dynamics": [("humanoid_sim/dynamics/contact/forward.py", "prepare"),
+                 ("humanoid_sim/dynamics/contact/forward.py", "inverse_prepared"),
+                 ("humanoid_sim/dynamics/contact/forward.py", "forward_prepared"),
+                 ("humanoid_sim/robot/actuators.py", "thesis_torques"),
+                 ("humanoid_sim/robot/actuators.py", "torque_map"),
+                 ("humanoid_sim/controllers/thesis/controller.py", "_dynamics_pass"),
+                 ("humanoid_sim/controllers/thesis/stage.py", "dynamics"),
                  # double-support stages (~1.5 % of them) are one compiled call, controller included
-                 ("humanoid_sim/kernel/stage.py", "double_support")],
-    "integrator": [("humanoid_sim/engines/weld.py", "project_on_support"), ("humanoid_sim/kernel/stage.py", "project"),
-                   ("humanoid_sim/kernel/stage.py", "advance"), ("pinocchio", "integrate")],
+                 ("humanoid_sim/controllers/thesis/stage.py", "double_support")],
+    "integrator": [("humanoid_sim/engines/weld.py", "project_on_support"),
+                   ("humanoid_sim/controllers/thesis/stage.py", "project"),
+                   ("humanoid_sim/controllers/thesis/stage.py", "advance"), ("pinocchio", "integrate")],
     "logging": [("humanoid_sim/engines/weld.py", "_stage0_record"), ("humanoid_sim/engines/weld.py", "build_log")],
 }
 
@@ -107,9 +112,9 @@ def mujoco_bench(hm, scenario, repeats: int) -> dict:
     """The MuJoCo engine's speed (see the module docstring)."""
     import numpy as np
 
-    from humanoid_sim.controllers.base import Observation
-    from humanoid_sim.phases import Phase
-    from humanoid_sim.mujoco.standing import StandingController
+    from humanoid_sim.engines.mujoco.standing import StandingController
+    from humanoid_sim.interfaces.controller import Observation
+    from humanoid_sim.robot.phases import Phase
 
     walls, res = [], None
     for _ in range(repeats):
@@ -140,7 +145,7 @@ def mujoco_bench(hm, scenario, repeats: int) -> dict:
         steps.append(time.perf_counter() - c0)
     step_us = 1e6 * statistics.median(steps)
     # the engine's own work per control update: a 2 s standing run through the engine and the loop
-    from humanoid_sim.loop import run as loop_run
+    from humanoid_sim.sim.loop import run as loop_run
 
     class Stand:
         name = "standing"
@@ -184,7 +189,7 @@ def gait_bench(hm, scenario_path: Path, repeats: int, thesis_rtf: float, engine:
     ``controller``: the gait's executor (``gait.controller``; None = its default, the balance controller)."""
     import yaml
 
-    from humanoid_sim.scenario import parse_scenario
+    from humanoid_sim.scenario.schema import parse_scenario
 
     doc = yaml.safe_load(scenario_path.read_text())
     doc["gait"] = {"hip_reference": "zmp_preview"}
@@ -275,7 +280,8 @@ def main(argv: list[str] | None = None) -> int:
     out["gaits"] = {"thesis": {"real_time_factor": round(rtf, 2)},
                     "zmp_preview": gait_bench(hm, args.scenario, args.repeats, rtf),
                     # the same plan executed by chapter 5's controller in the compiled kernel: as fast, but its
-                    # ground reactions are not feasible (the README's gait section); for the speed comparison only
+                    # ground reactions are not feasible (docs/getting-started.md, "The thesis walk and the feasible
+                    # walk"); for the speed comparison only
                     "zmp_preview_thesis_controller": gait_bench(hm, args.scenario, args.repeats, rtf,
                                                                 controller="thesis")}
     out["mujoco"] = mujoco_bench(hm, scenario, args.repeats)

@@ -11,7 +11,8 @@ Default sweep: scripts/sweeps/speed_step.yaml (32 walks of sim 3: 16 per gait). 
 - ``sweep_walks_s``: the same walks as Dask tasks on a LocalCluster of ``--workers`` processes that is already up
   and warm (first submission to last row, rows recorded as in a sweep; median);
   ``cluster_start_s``: starting that cluster and loading the model and kernel on its workers; ``cluster_stop_s``;
-- ``walks_ratio`` = sweep_walks_s / serial_walks_s: the throughput figure of issue #16 (target <= 0.6 on 2 cores);
+- ``walks_ratio`` = sweep_walks_s / serial_walks_s: the throughput figure of a sweep (parallel walks against serial ones
+  on 2 cores);
   ``sweep_task_wall_sum_s``: the walks' own wall times in the workers, summed (against serial_walks_s: how much
   slower a walk runs when both cores are busy); ``client_process_cpu_s``: CPU time of this process meanwhile
   (the client, the local scheduler and the nannies run here);

@@ -3,7 +3,7 @@
 
 Each RUN_DIR is a ``walk.py`` output folder (results.npz, summary.json).  Writes into ``--out`` (default: the
 current folder) ``gait_comparison.png`` (centre-of-pressure traces inside the sole outlines, one row per run,
-:func:`humanoid_sim.plots_compare.gait_comparison_figure`) and ``torques.md`` (peak and RMS |T| per actuator),
+:func:`humanoid_sim.outputs.plots.compare.gait_comparison_figure`) and ``torques.md`` (peak and RMS |T| per actuator),
 and prints the table.  The audit's friction coefficient is each run's (summary.json ``contact``), else 0.8.
 Exit status 0 on success, 2 on bad input (nothing written).
 
@@ -31,11 +31,11 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"compare_gaits.py: error: {d}: expected a walk.py output folder with {name}, not found",
                       file=sys.stderr)
                 return 2
-    from humanoid_sim.actuators import T_NAMES
-    from humanoid_sim.model import load_model
-    from humanoid_sim.plots import PlotError, audit_of
-    from humanoid_sim.plots_compare import gait_comparison_figure, torque_table
-    from humanoid_sim.results import atomic_write_bytes, atomic_write_text, load_results
+    from humanoid_sim.interfaces.log import atomic_write_bytes, atomic_write_text, load_results
+    from humanoid_sim.outputs.plots.compare import gait_comparison_figure, torque_table
+    from humanoid_sim.outputs.plots.thesis import PlotError, audit_of
+    from humanoid_sim.robot.actuators import T_NAMES
+    from humanoid_sim.robot.model import load_model
 
     hm = load_model()
     runs = []

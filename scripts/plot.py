@@ -1,7 +1,8 @@
 #!/usr/bin/env python
 """Redraw the figures of a run: ``python scripts/plot.py results/sim1/results.npz [--out DIR] [--scenario YAML]``.
 
-Writes every figure ``walk.py`` draws (:data:`humanoid_sim.plots.FIGURES`, by :func:`humanoid_sim.plots.plot_all`,
+Writes every figure ``walk.py`` draws (:data:`humanoid_sim.outputs.plots.thesis.FIGURES`, by
+:func:`humanoid_sim.outputs.plots.thesis.plot_all`,
 the same call) into ``--out`` (default: the folder of results.npz).  The reference-trajectory figures (thesis Figs.
 6.51-6.53) and the audit's friction coefficient come from the scenario: pass ``--scenario``, or leave it out and the
 scenario named in the run's summary.json is looked up in scripts/params/.
@@ -40,13 +41,13 @@ def main(argv: list[str] | None = None) -> int:
     if not args.results.is_file():
         print(f"plot.py: error: results file not found: {args.results}", file=sys.stderr)
         return 2
-    from humanoid_sim.plots import DEFAULT_FRICTION, PlotError, plot_all
+    from humanoid_sim.outputs.plots.thesis import DEFAULT_FRICTION, PlotError, plot_all
 
     traj, mu, title = None, DEFAULT_FRICTION, ""
     scenario = _scenario_path(args.results, args.scenario)
     if scenario is not None:
-        from humanoid_sim.scenario import ScenarioError, load_scenario
-        from humanoid_sim.trajectory import ReferenceTrajectory
+        from humanoid_sim.references.chapter3 import ReferenceTrajectory
+        from humanoid_sim.scenario.schema import ScenarioError, load_scenario
 
         try:
             sc = load_scenario(scenario)

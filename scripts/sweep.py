@@ -3,7 +3,7 @@
 
 import sys
 
-from humanoid_sim.sweep.cli import main
+from humanoid_sim.cli.sweep import main
 
 if __name__ == "__main__":
     sys.exit(main())

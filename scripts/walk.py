@@ -3,7 +3,7 @@
 
 import sys
 
-from humanoid_sim.cli import main
+from humanoid_sim.cli.walk import main
 
 if __name__ == "__main__":
     sys.exit(main())

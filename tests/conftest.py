@@ -7,14 +7,22 @@ from pathlib import Path
 
 import pytest
 
-from humanoid_sim.model import HumanoidModel, load_model
+from humanoid_sim.robot.model import HumanoidModel, load_model
 
 ROOT = Path(__file__).resolve().parents[1]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 """The headless browser the rendering tests use, or None."""
-needs_chromium = pytest.mark.skipif(
+_chromium_present = pytest.mark.skipif(
     CHROMIUM is None, reason="needs the Chromium web browser to render the 3-D view, and it is not installed "
                              "(Debian/Ubuntu: apt-get install chromium; .ci/run installs it)")
+
+
+def needs_chromium(test):
+    """Mark a test that renders the 3-D view in headless Chromium: slow (a browser start and a page render), and
+    skipped with a reason when the browser is not installed."""
+    return pytest.mark.slow(_chromium_present(test))
+
+
 REFERENCE = ROOT.parent / "shared" / "reference"
 """The thesis's numbers, extracted independently of this project (the folder ``shared/reference`` next to the
 project's folder in the development workspace; a fresh clone does not have it)."""
@@ -22,7 +30,8 @@ project's folder in the development workspace; a fresh clone does not have it)."
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Give the tests that compare the scenario files with the independent extraction a skip reason a newcomer
-    understands when the extraction is not there (tests/test_scenarios_params.py reads ``REFERENCE/<sim>.yaml``)."""
+    understands when the extraction is not there (tests/scenario/test_scenarios_params.py reads
+    ``REFERENCE/<sim>.yaml``)."""
     for item in items:
         if item.module.__name__.endswith("test_scenarios_params") and item.name.startswith(
                 "test_values_match_the_reference_extraction"):
@@ -38,3 +47,11 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 def hm() -> HumanoidModel:
     """The thesis humanoid, loaded once per test session (tests must not mutate its model)."""
     return load_model()
+
+
+@pytest.fixture(scope="session")
+def sim1():
+    """Simulation 1's scenario (scripts/params/sim1.yaml), loaded once per test session (tests must not change it)."""
+    from humanoid_sim.scenario.schema import load_scenario
+
+    return load_scenario(ROOT / "scripts" / "params" / "sim1.yaml")

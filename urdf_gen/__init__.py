@@ -6,7 +6,7 @@ Dependency-light on purpose (numpy + pyyaml): the model data is the single sourc
 deterministic rendering of it.
 """
 
-from urdf_gen.spec import BodySpec, JointSpec, RobotSpec, SpecError, load_spec
 from urdf_gen.emit import emit_urdf
+from urdf_gen.spec import BodySpec, JointSpec, RobotSpec, SpecError, load_spec
 
 __all__ = ["BodySpec", "JointSpec", "RobotSpec", "SpecError", "load_spec", "emit_urdf"]

@@ -209,7 +209,7 @@ def parse_spec(doc: dict[str, Any], source: str = "<yaml>") -> RobotSpec:
                       for k, v in (b.get("points") or {}).items()}
         body = BodySpec(id=bid, name=name, virtual=virtual, mass=mass, inertia=inertia, com=com, points=points,
                         joint_at=str(b.get("joint_at", f"O_{bid}")), visual=b.get("visual"))
-        body.link_offset  # validates joint_at
+        _ = body.link_offset  # validates joint_at
         bodies[bid] = body
 
     by_name = {b.name: b for b in bodies.values()}

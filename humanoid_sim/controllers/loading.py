@@ -5,18 +5,19 @@ from __future__ import annotations
 import importlib
 import re
 
-from humanoid_sim.controllers.base import Controller
+from humanoid_sim.errors import InputError
+from humanoid_sim.interfaces.controller import Controller
 
 DOTTED = re.compile(r"^[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*$")
 
 
-class ControllerLoadError(ValueError):
+class ControllerLoadError(InputError):
     """The named controller cannot be loaded or is not a controller (bad input: the message names the value)."""
 
 
 def load_controller(spec: str, field: str = "controller_class") -> Controller:
     """Import ``module:Class`` and return ``Class()``; it must have ``setup(ctx)`` and be callable
-    (:class:`humanoid_sim.controllers.base.Controller`)."""
+    (:class:`humanoid_sim.interfaces.controller.Controller`)."""
     if not isinstance(spec, str) or not DOTTED.match(spec):
         raise ControllerLoadError(f"{field}: expected 'package.module:ClassName', got {spec!r}")
     module_name, cls_name = spec.split(":")
@@ -35,7 +36,7 @@ def load_controller(spec: str, field: str = "controller_class") -> Controller:
                                   "constructed without arguments") from exc
     if not (callable(obj) and callable(getattr(obj, "setup", None))):
         raise ControllerLoadError(f"{field}: {spec} is not a controller: it needs a setup(ctx) method and a "
-                                  "__call__(obs) method (humanoid_sim.controllers.base.Controller)")
+                                  "__call__(obs) method (humanoid_sim.interfaces.controller.Controller)")
     if not isinstance(getattr(obj, "name", None), str):
         obj.name = spec
     return obj

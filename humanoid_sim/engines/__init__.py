@@ -1,4 +1,5 @@
-"""Engines: what advances the state under the phase's contacts (interface: :class:`.base.Engine`).
+"""Engines: what advances the state under the phase's contacts (interface:
+:class:`humanoid_sim.interfaces.engine.Engine`).
 
 - ``pinocchio`` (:class:`.weld.WeldEngine`, the default): the thesis's welded feet on Pinocchio's KKT dynamics;
 - ``thesis`` (:class:`.oracle.OracleEngine`): the NumPy transcription of the thesis's equations (slow; for
@@ -31,7 +32,7 @@ def make_engine(name: str, hm: Any, scenario: Any, traj: Any, compiled: bool | N
 
         return OracleEngine(hm, scenario, traj)
     if name == "mujoco":
-        from humanoid_sim.engines.mujoco import MujocoEngine
+        from humanoid_sim.engines.mujoco.engine import MujocoEngine
 
         return MujocoEngine(hm, scenario, traj, compiled=compiled, **options)
     raise ValueError(f"engine: {name!r} is not one of {', '.join(ENGINE_NAMES)}")

@@ -23,7 +23,7 @@ Per ode3 stage (Bogacki-Shampine, ``integrator.TABLEAUS``, integrated directly i
 2. the oracle's dynamic terms M, B, K of the phase (section 4.4), offered to the controller as
    :class:`OracleModel` (the thesis controller's 5.2 computed torque: SSP exact, DSP weighted minimum norm with
    the scenario's W_act);
-3. the controller (the stepping loop's, :mod:`humanoid_sim.loop`), which returns the saturated T (or joint torques,
+3. the controller (the stepping loop's, :mod:`humanoid_sim.sim.loop`), which returns the saturated T (or joint torques,
    converted to T by the actuator map);
 4. the oracle's 122 x 122 direct dynamic solution with T -> theta_ddot and F.
 
@@ -47,43 +47,46 @@ Decisions where the thesis is silent:
 - W_act: ``controller.Wact_RFFDSP`` / ``Wact_LFFDSP`` of the scenario when present, else
   ``thesis.forces.default_w_act()`` (errata A-3 reconstruction).
 - A controller that returns joint torques only (no T) drives the oracle with T = B^-1 tau, B the actuator map of
-  :meth:`humanoid_sim.actuators.Actuators.torque_map` (T's components only, reactions held).
+  :meth:`humanoid_sim.robot.actuators.Actuators.torque_map` (T's components only, reactions held).
 
 Speed: every stage builds M and B from 27 kinematic passes (section 4.4) and solves a 122 x 122 system.  These
-are small dense problems on which a multi-threaded BLAS only adds synchronisation; on the shared 2-core machine
-the walk ran 2.5-5 x slower with OpenBLAS's default threads.  the engine therefore limits the OpenBLAS libraries
+are small dense problems on which a multi-threaded BLAS only adds synchronisation; with OpenBLAS's default
+threads the walk runs several times slower (docs/notes/2026-11-26-code-measurements.md).  The engine therefore limits
+the OpenBLAS libraries
 bundled with NumPy and SciPy to one thread while it runs (:func:`single_threaded_blas`, restored afterwards;
-a no-op where those libraries are not found).  Measured on sim1: 6-8 s of wall time per simulated second
-(2 shared cores), against 15-50 s with the default BLAS threads.
+a no-op where those libraries are not found).
 """
 
 from __future__ import annotations
 
 import ctypes
 import importlib
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Callable, Iterator
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
-from humanoid_sim.actuators import Actuators
-from humanoid_sim.contact.wrenches import centre_of_pressure
-from humanoid_sim.controllers.base import Command, Observation
+from humanoid_sim.dynamics.contact.wrenches import centre_of_pressure
+from humanoid_sim.dynamics.integrator import TABLEAUS, Tableau
 from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
-from humanoid_sim.integrator import TABLEAUS, Tableau
-from humanoid_sim.model import HumanoidModel
-from humanoid_sim.phases import Phase
-from humanoid_sim.results import SimLog
-from humanoid_sim.scenario import Scenario
-from humanoid_sim.selector import PhaseSelector, SimulationError
+from humanoid_sim.errors import InputError
+from humanoid_sim.interfaces.controller import Command, Observation
+from humanoid_sim.interfaces.engine import StepRow
+from humanoid_sim.interfaces.log import SimLog
+from humanoid_sim.interfaces.selector import PhaseSelector, SimulationError
+from humanoid_sim.references.chapter3 import ReferenceTrajectory
+from humanoid_sim.robot.actuators import Actuators
+from humanoid_sim.robot.model import HumanoidModel
+from humanoid_sim.robot.phases import Phase
+from humanoid_sim.scenario.schema import Scenario
 from humanoid_sim.thesis.dynamics import DynamicsError
 from humanoid_sim.thesis.engine import ThesisEngine
 from humanoid_sim.thesis.forces import N_F, default_w_act
 from humanoid_sim.thesis.frames import PhaseError
 from humanoid_sim.thesis.joint_space import Q_from_F
 from humanoid_sim.thesis.kinematics import TOE_BODY, TOE_POINT, FootState, Kinematics, positions
-from humanoid_sim.trajectory import ReferenceTrajectory
 
 ORACLE_ERRORS = (DynamicsError, PhaseError)
 """The oracle's own failures (a singular solve, a phase it does not know): the loop reports them as a failed run."""
@@ -127,7 +130,7 @@ def single_threaded_blas() -> Iterator[None]:
             set_(max(int(n), 1))
 
 
-class ThesisWalkError(ValueError):
+class ThesisWalkError(InputError):
     """The scenario asks for something the oracle engine does not implement (message names the setting)."""
 
 
@@ -161,11 +164,21 @@ class OracleModel:
                                            W_act=self.W_act.get(name), terms=terms).T
 
 
+class OracleRecord(NamedTuple):
+    """The oracle engine's record of one step: the thesis state at its start (theta, theta_dot: 26 each, rad and
+    rad/s), the held feet, and the first stage's outputs (a dict: forward dynamics, terms, command)."""
+
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    fixed: Any
+    stage0: Any
+
+
 class OracleEngine:
     """The whole walk on the thesis oracle (:class:`humanoid_sim.thesis.ThesisEngine`): see the module docstring.
-    Slow on purpose (every matrix is built as the thesis builds it): 6-8 s of wall time per simulated second.
+    Slow on purpose: every matrix is built as the thesis builds it.
 
-    Engine interface (:class:`humanoid_sim.engines.base.Engine`) as :class:`humanoid_sim.engines.weld.WeldEngine`.
+    Engine interface (:class:`humanoid_sim.interfaces.engine.Engine`) as :class:`humanoid_sim.engines.weld.WeldEngine`.
     """
 
     name = "thesis"
@@ -264,7 +277,7 @@ class OracleEngine:
         return {"fd": fd, "terms": terms, "cmd": cmd, "T": T, "q": q, "v": v}
 
     def step(self, t: float, h: float, k: int, control: Callable[[Observation], Command],
-             checks: PhaseSelector) -> tuple:
+             checks: PhaseSelector) -> OracleRecord:
         """One explicit RK step in R^26 x R^26 with the scenario's tableau (ode3: Simulink's Bogacki-Shampine);
         returns the step's log record (state at t and the stage-0 outputs)."""
         phase, fixed = self.phase, self.fixed
@@ -290,7 +303,7 @@ class OracleEngine:
         self.theta = theta + h * sum(bi * r for bi, r in zip(tab.b, rates))
         self.theta_dot = theta_dot + h * sum(bi * a for bi, a in zip(tab.b, accs))
         self._kin = None
-        return (theta, theta_dot, fixed, stage0)
+        return OracleRecord(theta, theta_dot, fixed, stage0)
 
     # ------------------------------------------------------------------ what the phase selector reads
     def _positions(self) -> Kinematics:
@@ -328,12 +341,14 @@ class OracleEngine:
         self._kin = None
 
     # ------------------------------------------------------------------ logging
-    def build_log(self, rows: list[tuple]) -> SimLog:
+    def build_log(self, rows: list[StepRow]) -> SimLog:
         """Every signal of ``results.SIGNALS`` per step, from the loop's records (see the module docstring)."""
         log = SimLog()
         yaw_prev = {"hip": yaw_of(self.hm.spec.C0), "hip_ref": yaw_of(self.hm.spec.C0)}
-        for t, k, phase, ref, hip_ctrl, theta, theta_dot, fixed, out in rows:
-            self._log(log, k, phase, t, theta, theta_dot, fixed, out, ref, hip_ctrl, yaw_prev)
+        for row in rows:
+            r = row.record
+            self._log(log, row.k, row.phase, row.t, r.theta, r.theta_dot, r.fixed, r.stage0, row.reference,
+                      row.hip_ctrl_ref, yaw_prev)
         return log
 
     def _log(self, log: SimLog, k: int, phase: Phase, t: float, theta: np.ndarray, theta_dot: np.ndarray,

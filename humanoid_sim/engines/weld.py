@@ -5,7 +5,7 @@ body plus a lock of its toe joint; in double support the trailing foot's toe bod
 rows, 25 / 19 free DOF, the thesis's counts).  The state (q, v) advances by fixed-step Runge-Kutta (ode3 =
 Bogacki-Shampine, as Simulink's) with the controller evaluated at every stage; the accelerations are the KKT
 forward dynamics of the controller's torques under the phase's constraints (Baumgarte-stabilised,
-:class:`humanoid_sim.contact.ContactDynamics`), or the motion the controller solved for under this same model
+:class:`humanoid_sim.dynamics.contact.ContactDynamics`), or the motion the controller solved for under this same model
 (``Command.motion``; the thesis controller's computed torque realises it exactly when no actuator saturates).
 
 Decisions where the thesis is silent:
@@ -17,33 +17,37 @@ Decisions where the thesis is silent:
 - Touchdown applies the velocity reset of 4.5 (or the inelastic impulse law) and welds the landing foot where it
   landed (errata K-9: a foot that lands tilted stays welded tilted).
 
-Speed: with numba, each stage's integration and projection run compiled (:class:`humanoid_sim.kernel.stage.
+Speed: with numba, each stage's integration and projection run compiled (:class:`humanoid_sim.kernel.support.
 SupportKernel`), equal to :meth:`WeldEngine.project_on_support` to round-off.
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
 from humanoid_sim import kernel as _kernel
-from humanoid_sim.actuators import Actuators
-from humanoid_sim.contact import ContactDynamics, record_anchors
-from humanoid_sim.contact.inverse import symmetric_inertia
-from humanoid_sim.contact.wrenches import GroundReactionLog
-from humanoid_sim.controllers.base import Command, Observation
-from humanoid_sim.audit import SoleGeometry
-from humanoid_sim.impact import touchdown
-from humanoid_sim.landing import Landing, landing_record
-from humanoid_sim.integrator import RungeKutta
-from humanoid_sim.model import HumanoidModel
-from humanoid_sim.phases import FOOT_SPECS, Phase
-from humanoid_sim.results import SimLog
-from humanoid_sim.scenario import Scenario
-from humanoid_sim.selector import PhaseSelector, all_finite
-from humanoid_sim.trajectory import ReferenceTrajectory
+from humanoid_sim.dynamics.contact import ContactDynamics, record_anchors
+from humanoid_sim.dynamics.contact.inverse import symmetric_inertia
+from humanoid_sim.dynamics.contact.wrenches import GroundReactionLog
+from humanoid_sim.dynamics.integrator import RungeKutta
+from humanoid_sim.dynamics.welds import WeldModel
+from humanoid_sim.engines.impact import touchdown
+from humanoid_sim.engines.landing import Landing, landing_record
+from humanoid_sim.interfaces.controller import Command, Observation
+from humanoid_sim.interfaces.engine import StepRow
+from humanoid_sim.interfaces.log import SimLog
+from humanoid_sim.interfaces.selector import PhaseSelector, all_finite
+from humanoid_sim.kernel.log import StageLog
+from humanoid_sim.references.chapter3 import ReferenceTrajectory
+from humanoid_sim.robot.actuators import Actuators
+from humanoid_sim.robot.model import HumanoidModel
+from humanoid_sim.robot.phases import FOOT_SPECS, Phase
+from humanoid_sim.robot.sole import SoleGeometry
+from humanoid_sim.scenario.schema import Scenario
 
 BASIC = {Phase.LFFSSP: 0, Phase.RFFDSP: 1, Phase.RFFSSP: 2, Phase.LFFDSP: 3}
 FEET = (FOOT_SPECS["R"], FOOT_SPECS["L"])
@@ -61,20 +65,49 @@ def unwrap_to(angle: float, ref: float) -> float:
     return ref + (angle - ref + np.pi) % (2 * np.pi) - np.pi
 
 
-class WeldModel:
-    """The weld engine's constraint model, offered to controllers (``ControlContext.constraints``): the phase's
-    welds and toe locks as Pinocchio KKT rows (``dyn``, a :class:`humanoid_sim.contact.ContactDynamics`)."""
+class StageRecord(NamedTuple):
+    """What the log needs from the first integration stage of a step (SI units; world frame unless said).
 
-    kind = "weld"
+    Attributes:
+        a: the acceleration (nv,). lam: the constraint forces of the phase's welds and locks.
+        thdd_c: the thesis command accelerations (26,), NaN when the controller gives none.
+        T_cmd, T: the thesis actuator torques before and after saturation (26,), N m. sat: where T saturated.
+        tau: the generalized torques (nv,), N m. pos, ori: the largest weld drift, m and rad.
+        residual: ||M a + h - tau - J^T lam||_inf, N m. hip_p, hip_v: the hip CoM, m and m/s.
+        R17: Body 17's rotation. toe_R, toe_L: the toe points, m. R1, R2: the toe bodies' rotations.
+    """
 
-    def __init__(self, dyn: ContactDynamics) -> None:
-        self.dyn = dyn
+    a: np.ndarray
+    lam: np.ndarray
+    thdd_c: np.ndarray
+    T_cmd: np.ndarray
+    T: np.ndarray
+    sat: np.ndarray
+    tau: np.ndarray
+    pos: float
+    ori: float
+    residual: float
+    hip_p: np.ndarray
+    hip_v: np.ndarray
+    R17: np.ndarray
+    toe_R: np.ndarray
+    toe_L: np.ndarray
+    R1: np.ndarray
+    R2: np.ndarray
+
+
+class WeldRecord(NamedTuple):
+    """The weld engine's record of one step: the state at its start and its first stage's :class:`StageRecord`."""
+
+    q: np.ndarray
+    v: np.ndarray
+    stage: StageRecord
 
 
 class WeldEngine:
     """Pinocchio floating-base dynamics with the feet welded (see the module docstring).
 
-    Engine interface (:class:`humanoid_sim.engines.base.Engine`): ``start``, ``step``, ``hip_com``,
+    Engine interface (:class:`humanoid_sim.interfaces.engine.Engine`): ``start``, ``step``, ``hip_com``,
     ``toe_point``, ``toe_rotation``, ``state_vectors``, ``touchdown``, ``enter``, ``build_log``."""
 
     name = "pinocchio"
@@ -105,7 +138,7 @@ class WeldEngine:
             compiled = _kernel.AVAILABLE
         self.support_kernel = None
         if compiled:
-            from humanoid_sim.kernel.stage import SupportKernel
+            from humanoid_sim.kernel.support import SupportKernel
 
             self.support_kernel = SupportKernel(hm)
         self.q = self.v = None
@@ -130,11 +163,11 @@ class WeldEngine:
 
     # ------------------------------------------------------------------ one step
     def step(self, t: float, h: float, k: int, control: Callable[[Observation], Command],
-             checks: PhaseSelector) -> tuple:
+             checks: PhaseSelector) -> WeldRecord:
         """Advance (q, v) from t to t + h under the current phase's welds; the controller is called at every
         stage.  Returns the step's log record (state at t and the stage-0 outputs)."""
         phase, anchors = self.phase, self.anchors
-        stage0: list[tuple] = [()]
+        stage0: list[StageRecord] = []
 
         def f(ts: float, qs: np.ndarray, vs: np.ndarray, stage: int) -> np.ndarray:
             checks.check_stage(ts, qs, vs, stage)
@@ -142,7 +175,7 @@ class WeldEngine:
             a, lam = self._motion(phase, anchors, qs, vs, cmd)
             checks.check_acceleration(ts, a)
             if stage == 0:
-                stage0[0] = self._stage0_record(phase, qs, vs, cmd, a, lam)
+                stage0.append(self._stage0_record(phase, qs, vs, cmd, a, lam))
             return a
 
         q, v = self.q, self.v
@@ -152,7 +185,7 @@ class WeldEngine:
             adv = self.support_kernel.advance
             q_new, v_new = self.rk.step(f, t, q, v, h, advance=lambda *a: adv(phase, anchors, *a))
         self.q, self.v = q_new, v_new
-        return (q, v) + stage0[0]
+        return WeldRecord(q, v, stage0[0])
 
     def _motion(self, phase: Phase, anchors, q: np.ndarray, v: np.ndarray, cmd: Command
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -167,17 +200,18 @@ class WeldEngine:
         return fwd.a, fwd.lam
 
     def _stage0_record(self, phase: Phase, q: np.ndarray, v: np.ndarray, cmd: Command, a: np.ndarray,
-                       lam: np.ndarray) -> tuple:
+                       lam: np.ndarray) -> StageRecord:
         """What the log needs from the first stage of a step, read while the solver still holds that state: the
         command, the weld drifts, the dynamics residual and the task frames' positions, orientations and the hip
         velocity."""
         tau = cmd.tau
         extra = cmd.extra or {}
         lg = extra.get("kernel_log")
-        if lg is not None:  # the compiled stage computed the same quantities (layout: kernel.stage.StageOutput)
-            return (a, lam, cmd.theta_ddot_cmd, cmd.T_cmd, cmd.T, cmd.saturated, tau, lg[1], lg[2], lg[3], lg[4:7],
-                    lg[7:10], lg[10:19].reshape(3, 3), lg[19:22], lg[22:25], lg[25:34].reshape(3, 3),
-                    lg[34:43].reshape(3, 3))
+        if lg is not None:  # the compiled stage computed the same quantities (layout: kernel.log)
+            r = StageLog(lg)
+            return StageRecord(a, lam, cmd.theta_ddot_cmd, cmd.T_cmd, cmd.T, cmd.saturated, tau, r.weld_position_error,
+                               r.weld_orientation_error, r.residual, r.hip_p, r.hip_v, r.R_17, r.toe_R_p, r.toe_L_p,
+                               r.R_1, r.R_2)
         rows = self.dyn.rows(phase.contacts)
         d = self.dyn.data
         M = extra.get("M")
@@ -196,10 +230,10 @@ class WeldEngine:
             sat = self._no_sat
         if thdd_c is None:
             thdd_c = np.full(26, np.nan)
-        return (a, lam, thdd_c, T_cmd, T, sat, tau, pos, ori, residual,
-                place["Pc_17"].translation.copy(), hip_v, place["O_17"].rotation.copy(),
-                place["P_tpR"].translation.copy(), place["P_tpL"].translation.copy(), place["O_1"].rotation.copy(),
-                place["O_2"].rotation.copy())
+        return StageRecord(a, lam, thdd_c, T_cmd, T, sat, tau, pos, ori, residual,
+                           place["Pc_17"].translation.copy(), hip_v, place["O_17"].rotation.copy(),
+                           place["P_tpR"].translation.copy(), place["P_tpL"].translation.copy(),
+                           place["O_1"].rotation.copy(), place["O_2"].rotation.copy())
 
     def project_on_support(self, phase: Phase, anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) with the support foot exactly at its anchor and at rest (see the module docstring).
@@ -249,7 +283,7 @@ class WeldEngine:
         self.v = res.v_plus
 
     def run_info(self) -> dict:
-        """For the run's summary: the landing audit records (:mod:`humanoid_sim.landing`), one per touchdown."""
+        """For the run's summary: the landing audit records (:mod:`humanoid_sim.engines.landing`), one per touchdown."""
         return {"landings": list(self.landings)}
 
     def enter(self, phase: Phase) -> None:
@@ -258,16 +292,19 @@ class WeldEngine:
         self.phase = phase
 
     # ------------------------------------------------------------------ logging
-    def build_log(self, rows: list[tuple]) -> SimLog:
-        """The log from the loop's per-step records (t, k, phase, nominal reference, controller hip reference,
-        engine record): stacked, with the derived signals (thesis coordinates, unwrapped yaws, ground reactions,
-        centres of pressure, ZMP) computed in one pass after the loop."""
+    def build_log(self, rows: list[StepRow]) -> SimLog:
+        """The log from the loop's rows (their records are :class:`WeldRecord`): stacked, with the derived signals
+        (thesis coordinates, unwrapped yaws, ground reactions, centres of pressure, ZMP) computed in one pass after
+        the loop."""
         hm = self.hm
         n = len(rows)
         if n == 0:
             return SimLog()
-        (t, k, phase, ref, hip_ctrl, q, v, a, lam, thdd_c, T_cmd, T, sat, tau, pos, ori, res, hip_p, hip_v, R17,
-         toe_R, toe_L, R1, R2) = zip(*rows)
+        t, k, phase, ref, hip_ctrl, records = zip(*rows)
+        q = [r.q for r in records]
+        v = [r.v for r in records]
+        (a, lam, thdd_c, T_cmd, T, sat, tau, pos, ori, res, hip_p, hip_v, R17, toe_R, toe_L, R1,
+         R2) = zip(*(r.stage for r in records))
         Q, V, A = np.array(q), np.array(v), np.array(a)
         thesis = lambda X: hm.theta_sign * X[:, hm.theta_v_idx]  # noqa: E731 -- v-ordered arrays -> thesis
         bf, bm, fw, cop = self._reactions.batch(Q, V, A, [ph.contacts for ph in phase], lam)

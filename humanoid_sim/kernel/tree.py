@@ -1,11 +1,12 @@
-"""Constant arrays of a Pinocchio model for the compiled kinematics (:mod:`humanoid_sim.kernel.compiled`)."""
+"""Constant arrays of a Pinocchio model for the compiled kinematics (:mod:`humanoid_sim.kernel.kinematics`)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
 
-from humanoid_sim.kernel.compiled import FREE_FLYER
+from humanoid_sim.kernel.kinematics import FREE_FLYER
+from humanoid_sim.kernel.records import Tree, Work
 
 
 class TreeConstants:
@@ -56,3 +57,12 @@ class TreeConstants:
         self.fR = np.array([model.frames[f].placement.rotation for f in fids])
         self.fp = np.array([model.frames[f].placement.translation for f in fids])
         self.nj, self.nv, self.nq = nj, nv, model.nq
+        self.record = Tree(self.parents, self.axis, self.idx_q, self.idx_v, self.jR, self.jp, self.support,
+                           self.fparent, self.fR, self.fp)
+        """The tables as the compiled functions take them (:class:`humanoid_sim.kernel.records.Tree`)."""
+
+    def work(self) -> Work:
+        """Fresh work buffers of one stage for this tree and its frames (:class:`humanoid_sim.kernel.records.Work`)."""
+        nf = len(self.frames)
+        return Work(np.empty((self.nj, 3, 3)), np.empty((self.nj, 3)), np.empty((nf, 3, 3)), np.empty((nf, 3)),
+                    np.empty((nf, 6, self.nv + 1)), np.empty((nf, 6)))

@@ -1,4 +1,4 @@
-"""Parameter sweeps: many walks of one base scenario, run as Dask tasks (issue #16).
+"""Parameter sweeps: many walks of one base scenario, run as Dask tasks.
 
 - :mod:`.spec`: the sweep file (``base``, ``grid``, ``random``), its validation and its expansion into walks;
 - :mod:`.walk`: one walk on a worker (model and kernel loaded once per process) and its table row;

@@ -2,7 +2,8 @@
 
 - :func:`plot_sizing`: per actuator (the 26 thesis torques T1..T26, eq. 4.69 order), the distribution over the
   completed walks of the peak applied |T| and of the peak commanded |T_cmd| (what the controller asked for before
-  saturation), both as a fraction of the actuator's saturation limit (:attr:`humanoid_sim.actuators.Actuators.limits`);
+  saturation), both as a fraction of the actuator's saturation limit
+  (:attr:`humanoid_sim.robot.actuators.Actuators.limits`);
   below, the share of completed walks in which the actuator saturated at least once.  A sweep with a text axis
   (a choice of gait) draws one box per choice instead (:func:`sizing_group`).
 - :func:`plot_feasibility`: over the first two swept parameters, the share of walks that completed, the
@@ -15,8 +16,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -41,7 +43,7 @@ def _num(x: Any) -> float:
 def actuator_labels() -> list[str]:
     """Axis labels of the 26 actuators (T-bar order): name, joint and moment axis in the higher body's frame
     (x forward = roll, y left = pitch, z up = yaw at the zero posture)."""
-    from humanoid_sim.actuators import GROUPS
+    from humanoid_sim.robot.actuators import GROUPS
 
     out = []
     for g in GROUPS:

@@ -1,7 +1,8 @@
 """Running a sweep's walks as Dask tasks: the cluster, submission, collection, faults and Ctrl-C.
 
 - :func:`dask_client`: by default a ``distributed.LocalCluster`` of ``n`` worker processes with one thread
-  each, scheduler, workers and the scheduler's HTTP server (dashboard) bound to 127.0.0.1; with a scheduler address, a ``Client`` of that
+  each, scheduler, workers and the scheduler's HTTP server (dashboard) bound to 127.0.0.1; with a scheduler address, a
+  ``Client`` of that
   existing cluster.  The local workers are started with SIGINT ignored: Ctrl-C in the terminal reaches the
   whole process group, and it is the client's to handle (it keeps the finished rows and stops the cluster).
 - :func:`execute`: one task per walk (:func:`humanoid_sim.sweep.walk.walk_row`), collected as they finish.
@@ -23,14 +24,15 @@ import signal
 import threading
 import time
 import uuid
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import yaml
 
-from humanoid_sim.results import atomic_write_text
+from humanoid_sim.interfaces.log import atomic_write_text
 from humanoid_sim.sweep.spec import Walk
 from humanoid_sim.sweep.table import TableSink
 from humanoid_sim.sweep.walk import WalkSetup, walk_row
@@ -130,10 +132,11 @@ def _row_of_error(exc: BaseException) -> dict[str, Any]:
     from distributed.scheduler import KilledWorker
 
     if isinstance(exc, KilledWorker):
-        return {"completed": False, "failure_kind": "worker_lost",
+        return {"completed": False, "status": "failed", "failure_kind": "worker_lost",
                 "reason": f"worker process died while running this walk, on every attempt ({exc})",
                 "failure_time_s": None}
-    return {"completed": False, "failure_kind": "exception", "reason": f"{type(exc).__name__}: {exc}",
+    return {"completed": False, "status": "failed", "failure_kind": "exception",
+            "reason": f"{type(exc).__name__}: {exc}",
             "failure_time_s": None}
 
 

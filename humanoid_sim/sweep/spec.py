@@ -18,12 +18,12 @@ Dotted paths: names separated by dots, each optionally followed by list indices 
 (every element): ``simulation.t_end_s``, ``controller.Wp_fa_LFFSSP[2]``, ``path.Phip[*][1]`` (every waypoint's
 y).  A missing mapping key is created (``simulation.t_end_s`` when the base scenario has no ``t_end_s``; a new
 section such as ``gait.hip_reference``): whether the scenario accepts it is decided by the scenario schema
-(:func:`humanoid_sim.scenario.parse_scenario`), not here, so every key that schema accepts can be swept.
+(:func:`humanoid_sim.scenario.schema.parse_scenario`), not here, so every key that schema accepts can be swept.
 
 Walks: the grid's combinations (``itertools.product`` in file order) times the ``n`` random samples (the same
 samples for every grid point, drawn sample by sample in file order from ``numpy.random.default_rng(seed)``);
 without a grid, the samples; without ``random``, the grid.  Every generated scenario is validated with
-:func:`~humanoid_sim.scenario.parse_scenario` here, before any walk runs; the message names the walk and its
+:func:`~humanoid_sim.scenario.schema.parse_scenario` here, before any walk runs; the message names the walk and its
 parameter values.  Each walk is identified by :func:`scenario_hash` of its generated document; two walks that
 generate the same document are an error.
 
@@ -39,14 +39,19 @@ import itertools
 import json
 import math
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
+from humanoid_sim.errors import InputError
+
 # The scenario module's YAML loader (safe, rejects duplicate keys): sweep files obey the same rules.
-from humanoid_sim.scenario import ScenarioError, parse_scenario, read_yaml, suggest_key
+from humanoid_sim.scenario.fields import ScenarioError, suggest_key
+from humanoid_sim.scenario.schema import parse_scenario, read_scenario_doc
+from humanoid_sim.scenario.yamlio import read_yaml
 
 TOP_KEYS = ("base", "description", "grid", "random")
 RANDOM_KEYS = ("n", "seed")
@@ -59,7 +64,7 @@ ALL = "*"
 """Path token meaning "every element of the list"."""
 
 
-class SweepError(ValueError):
+class SweepError(InputError):
     """Invalid sweep file: the message names the file, the field, the value and what was expected."""
 
 
@@ -73,7 +78,7 @@ class DottedPath:
     tokens: tuple[str | int, ...]
 
     @classmethod
-    def parse(cls, text: str, where: str) -> "DottedPath":
+    def parse(cls, text: str, where: str) -> DottedPath:
         """Parse ``text``; ``where`` prefixes the error message."""
         tokens: list[str | int] = []
         for seg in text.strip().split("."):
@@ -87,7 +92,7 @@ class DottedPath:
                 tokens.append(ALL if idx == ALL else int(idx))
         return cls(text.strip(), tuple(tokens))
 
-    def overlaps(self, other: "DottedPath") -> bool:
+    def overlaps(self, other: DottedPath) -> bool:
         """Whether the two paths can address the same value (one is a prefix of the other; ``[*]`` matches
         any index)."""
         for a, b in zip(self.tokens, other.tokens):
@@ -414,8 +419,8 @@ def parse_sweep(doc: Any, source: str | Path) -> SweepSpec:
     if not isinstance(desc, str):
         raise SweepError(f"{src}: description: expected a string, got {_show(desc)}")
     base_path = _resolve_base(src, doc["base"])
-    base_doc = _read_yaml(base_path, "scenario file")
     try:
+        base_doc = read_scenario_doc(base_path)   # the base's own ``base:`` chain resolved
         parse_scenario(base_doc, str(base_path))
     except ScenarioError as exc:
         raise SweepError(f"{src}: base: the base scenario is invalid: {exc}") from None

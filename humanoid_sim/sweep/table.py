@@ -6,7 +6,8 @@ parameters (one column per axis, :attr:`humanoid_sim.sweep.spec.Axis.column`), t
 (:func:`humanoid_sim.sweep.walk.flatten_summary`, wall times, worker) in the order they first appear.  Rows are
 sorted by walk; rows of other sweeps kept in the same folder (their hash is not one of this sweep's) come last.
 
-Both files are rewritten whole through a temporary file and a rename (:func:`humanoid_sim.results.atomic_write_bytes`):
+Both files are rewritten whole through a temporary file and a rename
+(:func:`humanoid_sim.interfaces.log.atomic_write_bytes`):
 a reader, a crash or a Ctrl-C never sees a half-written table.  Floats are IEEE doubles in Parquet and their
 shortest round-trip decimal text in the CSV, so both give back the exact numbers.
 """
@@ -16,23 +17,25 @@ from __future__ import annotations
 import io
 import json
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any
 
 import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
-from humanoid_sim.results import atomic_write_bytes
+from humanoid_sim.errors import HumanoidSimError
+from humanoid_sim.interfaces.log import atomic_write_bytes
 
 PARQUET = "sweep.parquet"
 CSV = "sweep.csv"
 LEAD = ("walk", "scenario_hash", "engine")
-STATUS = ("completed", "failure_kind", "reason", "failure_time_s")
+STATUS = ("completed", "status", "failure_kind", "reason", "failure_time_s")
 Key = tuple[str, str]
 
 
-class TableError(ValueError):
+class TableError(HumanoidSimError, ValueError):
     """An existing sweep table that cannot be read or is not a sweep table."""
 
 
@@ -49,7 +52,8 @@ def read_rows(out: Path) -> list[dict[str, Any]]:
     try:
         rows = pq.read_table(path).to_pylist()
     except (OSError, pa.ArrowException) as exc:
-        raise TableError(f"{path}: cannot read the existing sweep table ({exc}); move it away to start afresh") from None
+        raise TableError(f"{path}: cannot read the existing sweep table ({exc}); "
+                         "move it away to start afresh") from None
     for i, r in enumerate(rows):
         missing = [c for c in LEAD + ("completed",) if c not in r]
         if missing:

@@ -1,6 +1,6 @@
 """One walk of a sweep: a scenario document -> its summary -> one table row.  Runs in a Dask worker process.
 
-Per process, the model (URDF parse, :func:`humanoid_sim.model.load_model`) is built once and cached
+Per process, the model (URDF parse, :func:`humanoid_sim.robot.model.load_model`) is built once and cached
 (:func:`model`); the compiled kernel (numba, loaded from its disk cache) is loaded by the first simulator the
 process constructs and reused by every later one (numba's dispatchers live in the module).  :class:`WalkSetup`
 (a Dask ``WorkerPlugin``) does both when a worker joins, before its first task.  :data:`STATS` counts model loads
@@ -29,28 +29,17 @@ STATS: dict[str, int] = {"model_loads": 0, "walks": 0, "warm_ups": 0}
 _CACHE: dict[str, Any] = {}
 _LOCK = threading.Lock()   # the warm-up thread and the first task may ask for the model at once
 
-STOPPED_PREFIX = "stopped at"               # the simulator's reason when the requested stop time is reached
-INTERRUPTED_PREFIX = "interrupted by the user"   # its reason after a KeyboardInterrupt
 
 
 def model() -> Any:
-    """The humanoid model of this process (built on the first call, then reused)."""
+    """The humanoid model of this process (built on the first call, then reused: :func:`humanoid_sim.api.robot`)."""
+    from humanoid_sim import api
+
     with _LOCK:
         if "hm" not in _CACHE:
-            from humanoid_sim.model import load_model
-
-            _CACHE["hm"] = load_model()
+            _CACHE["hm"] = api.robot()
             STATS["model_loads"] += 1
         return _CACHE["hm"]
-
-
-def _simulator(engine: str, hm: Any, sc: Any) -> Any:
-    """The walk's simulator on ``engine`` (scenario + engine + controller + the stepping loop)."""
-    if engine not in ENGINE_NAMES:
-        raise ValueError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
-    from humanoid_sim.simulate import Simulator
-
-    return Simulator(hm, sc, engine=engine)
 
 
 def torque_rms(T: np.ndarray) -> np.ndarray:
@@ -63,20 +52,23 @@ def torque_rms(T: np.ndarray) -> np.ndarray:
 
 
 def run_walk(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, Any]:
-    """Simulate the scenario document ``doc`` on ``engine`` and return its summary (``summary.json``'s content:
-    :func:`humanoid_sim.summary.summarize_with_audit`) plus ``torque_rms_Nm`` (actuator name -> RMS |T|, N m).
-    Raises on a scenario or engine error; a walk that fails in the simulator returns normally with
-    ``completed = false`` and its reason."""
-    from humanoid_sim.actuators import T_NAMES
-    from humanoid_sim.scenario import parse_scenario
-    from humanoid_sim.summary import summarize_with_audit
+    """Simulate the scenario document ``doc`` on ``engine`` and return its summary (``summary.json``'s content,
+    :func:`humanoid_sim.api.run_walk`) plus ``torque_rms_Nm`` (actuator name -> RMS |T|, N m).
 
-    sc = parse_scenario(doc, source)
-    hm = model()
-    sim = _simulator(engine, hm, sc)
-    result = sim.run()
-    summary = summarize_with_audit(result, sc, engine, hm, result.phase_names)
-    rms = torque_rms(result.log.arrays()["T"]) if len(result.log) else np.full(len(T_NAMES), np.nan)
+    Raises:
+        InputError: a bad scenario or engine. A walk that fails in the simulator returns normally with
+            ``completed = false`` and its reason.
+    """
+    from humanoid_sim import api
+    from humanoid_sim.robot.actuators import T_NAMES
+    from humanoid_sim.scenario.schema import parse_scenario
+
+    if engine not in ENGINE_NAMES:
+        raise ValueError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
+    model()   # counted once per process
+    run = api.run_walk(parse_scenario(doc, source), engine)
+    summary = run.summary
+    rms = torque_rms(run.result.log.arrays()["T"]) if len(run.result.log) else np.full(len(T_NAMES), np.nan)
     out: dict[str, Any] = {}
     for k, v in summary.items():   # torque_rms_Nm next to torque_peak_Nm
         out[k] = v
@@ -86,7 +78,7 @@ def run_walk(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, 
 
 
 # --------------------------------------------------------------------------------------------- rows
-_NOT_COLUMNS = ("scenario", "engine", "completed", "reason", "phase_log")
+_NOT_COLUMNS = ("scenario", "engine", "completed", "status", "reason", "phase_log")
 
 
 def flatten_summary(summary: dict[str, Any]) -> dict[str, Any]:
@@ -136,14 +128,16 @@ def walk_row(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, 
     try:
         summary = run_walk(doc, engine, source)
     except Exception as exc:  # noqa: BLE001 - any failure of one walk is that walk's row, never the sweep's end
-        row = {"completed": False, "failure_kind": "exception", "reason": f"{type(exc).__name__}: {exc}",
+        row = {"completed": False, "status": "failed", "failure_kind": "exception",
+               "reason": f"{type(exc).__name__}: {exc}",
                "failure_time_s": None, "task_wall_time_s": time.perf_counter() - t0, "worker": worker}
         return {"row": row, "summary": None}
     reason = str(summary["reason"])
-    if reason.startswith(INTERRUPTED_PREFIX):
+    if summary["status"] == "interrupted":
         return {"interrupted": True}
-    completed = bool(summary["completed"]) or reason.startswith(STOPPED_PREFIX)
-    row = {"completed": completed, "failure_kind": None if completed else "simulation", "reason": reason,
+    completed = summary["status"] in ("completed", "stopped")
+    row = {"completed": completed, "status": summary["status"], "failure_kind": None if completed else "simulation",
+           "reason": reason,
            "failure_time_s": None if completed else summary["sim_time_s"], **flatten_summary(summary),
            "task_wall_time_s": time.perf_counter() - t0, "worker": worker}
     return {"row": row, "summary": summary}
@@ -155,11 +149,12 @@ def warm_up(engine: str, doc: dict | None) -> None:
     Errors are swallowed: a walk that then fails reports them in its row."""
     STATS["warm_ups"] += 1
     try:
-        hm = model()
+        model()
         if doc is not None and engine == "pinocchio":
-            from humanoid_sim.scenario import parse_scenario
+            from humanoid_sim import api
+            from humanoid_sim.scenario.schema import parse_scenario
 
-            _simulator(engine, hm, parse_scenario(doc, "<warm-up>"))
+            api.prepare(parse_scenario(doc, "<warm-up>"), engine)
     except Exception:  # noqa: BLE001
         pass
 

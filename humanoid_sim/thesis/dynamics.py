@@ -25,8 +25,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humanoid_sim.errors import SimulationError
 from humanoid_sim.thesis.forces import (
-    LOCKED_TOE, N_F, ZERO_GROUND, ZERO_REACTION, block, fslice, phi, selector,
+    LOCKED_TOE,
+    N_F,
+    ZERO_GROUND,
+    ZERO_REACTION,
+    block,
+    fslice,
+    phi,
+    selector,
 )
 from humanoid_sim.thesis.frames import IDX, U, check_phase, is_ssp, relative_rotation, skew
 from humanoid_sim.thesis.kinematics import Fixed, Kinematics, accelerations, com_vectors
@@ -35,7 +43,7 @@ from humanoid_sim.thesis.params import REAL_BODIES, ThesisParams
 N_Q = 26
 
 
-class DynamicsError(RuntimeError):
+class DynamicsError(SimulationError):
     """The direct dynamic system is singular or inconsistent; the message carries the numbers."""
 
 

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humanoid_sim.errors import InputError
+
 PHASES: tuple[str, ...] = ("LFFSSP", "RFFDSP", "RFFSSP", "LFFDSP")
 """The four basic phases in walking order (design.md section 4)."""
 
@@ -63,7 +65,7 @@ Key = int | str
 """A frame key: a body number, or "17fR" / "17fL" for the two estimates of frame 17 in the DSPs."""
 
 
-class PhaseError(ValueError):
+class PhaseError(InputError):
     """Unknown phase name or missing stance-foot data for the phase."""
 
 

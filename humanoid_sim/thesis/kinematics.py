@@ -34,8 +34,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from humanoid_sim.thesis.frames import (
-    U, Key, PhaseError, angular_accelerations, angular_velocities, check_phase, cross, orientations,
-    stance_feet, trunk_key,
+    Key,
+    PhaseError,
+    U,
+    angular_accelerations,
+    angular_velocities,
+    check_phase,
+    cross,
+    orientations,
+    stance_feet,
+    trunk_key,
 )
 from humanoid_sim.thesis.params import ThesisParams
 

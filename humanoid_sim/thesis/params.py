@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from humanoid_sim.errors import InputError
+
 REAL_BODIES: tuple[int, ...] = (1, 3, 9, 11, 2, 4, 10, 12, 17, 20, 23, 24, 27)
 """The 13 real bodies in the order of Z and K (eqs. 4.70/4.71, L2763)."""
 
@@ -28,7 +30,7 @@ _ALIASES = {
 }
 
 
-class ThesisParamError(ValueError):
+class ThesisParamError(InputError):
     """Missing or inconsistent body parameter."""
 
 
@@ -81,5 +83,7 @@ def load_params(path: str | Path | None = None) -> ThesisParams:
     from urdf_gen.spec import load_spec  # local import: keep this module importable without the package
 
     if path is None:
-        path = Path(__file__).resolve().parents[2] / "models" / "thesis_humanoid.yaml"
+        from humanoid_sim.paths import MODELS_DIR
+
+        path = MODELS_DIR / "thesis_humanoid.yaml"
     return params_from_spec(load_spec(path))

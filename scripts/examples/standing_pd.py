@@ -5,7 +5,7 @@
 Copy this file, change ``StandingPD.__call__``, and run it on any engine.  A controller is a class with a ``name``,
 ``setup(ctx)`` (called once: ctx.hm = the robot, ctx.q0 = the initial posture, ctx.traj = the references) and
 ``__call__(obs)`` returning 26 joint torques (N m, Pinocchio's joint order, obs.q[7:] / obs.v[6:]) -- see
-README, "Write your own controller".  It can also be named in a scenario: ``controller_class: module:Class``.
+docs/controllers.md.  It can also be named in a scenario: ``controller_class: module:Class``.
 """
 
 import argparse
@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from humanoid_sim.model import load_model
-from humanoid_sim.phases import Phase
-from humanoid_sim.scenario import load_scenario
-from humanoid_sim.simulate import Simulator
+from humanoid_sim.robot.model import load_model
+from humanoid_sim.robot.phases import Phase
+from humanoid_sim.scenario.schema import load_scenario
+from humanoid_sim.sim.simulate import Simulator
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -62,7 +62,7 @@ def main() -> None:
     print(f"{result.reason}; hip drift max {drift * 1000:.3g} mm over {result.sim_time:.2f} s")
     args.out.mkdir(parents=True, exist_ok=True)
     result.log.save(args.out / "results.npz", result.phase_names)
-    from humanoid_sim.viewer import write_playback
+    from humanoid_sim.outputs.viewer import write_playback
 
     write_playback(args.out / "results.npz", args.out / "playback.html", hm=hm, traj=sim.traj)
     print(f"playback: {args.out / 'playback.html'}")

@@ -1,0 +1,145 @@
+"""summary.json: the numbers a user reads first after a run (tracking, torques, contacts, speed)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from humanoid_sim.robot.actuators import T_NAMES
+from humanoid_sim.sim.simulate import SimResult
+
+
+def _f(x: Any) -> float | None:
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, Any]:
+    """Summary of a run (SI units: m, rad, N m, s).  Runs on an engine with real contact (``--engine mujoco``) add
+    ``fell``, ``fall_time_s``, ``fall_reason``, ``foot_slip_max_m``, ``foot_tilt_max_rad``, ``penetration_max_m``
+    and ``control_period_s`` (:meth:`humanoid_sim.engines.mujoco.engine.MujocoEngine.run_info`)."""
+    a = result.log.arrays()
+    n = len(result.log)
+    out: dict[str, Any] = {
+        "scenario": scenario_name,
+        "engine": engine,
+        "completed": bool(result.completed),
+        "status": result.status.value,
+        "reason": result.reason,
+        "phases_planned": int(result.phases_planned),
+        "phases_completed": int(sum(1 for p in result.phases if p.t_end is not None and (
+            p is not result.phases[-1] or result.completed))),
+        "sim_time_s": _f(result.sim_time),
+        "wall_time_s": _f(result.wall_time),
+        "real_time_factor": _f(result.sim_time / result.wall_time) if result.wall_time > 0 else None,
+        "steps": int(result.steps),
+    }
+    if "compiled_stages" in result.extra:  # fast engine: how many stages ran compiled (kernel/), how many not
+        out["compiled_stages"] = int(result.extra["compiled_stages"])
+        out["reference_stages"] = int(result.stage_evaluations - result.extra["compiled_stages"])
+    if n:
+        e = np.linalg.norm(a["hip_p"] - a["hip_p_ref"], axis=1)
+        ec = np.linalg.norm(a["hip_p"] - a["hip_p_ctrl_ref"], axis=1)
+        dyaw = a["hip_yaw"] - a["hip_yaw_ref"]
+        T = np.abs(a["T"])
+        out.update({
+            "hip_com_error_rms_m": _f(np.sqrt(np.mean(e ** 2))),
+            "hip_com_error_max_m": _f(e.max()),
+            "hip_com_error_vs_controller_reference_rms_m": _f(np.sqrt(np.mean(ec ** 2))),
+            "hip_com_error_vs_controller_reference_max_m": _f(ec.max()),
+            "hip_yaw_error_rms_rad": _f(np.sqrt(np.mean(dyaw ** 2))),
+            "torque_peak_Nm": {name: _f(T[:, i].max()) for i, name in enumerate(T_NAMES)},
+            "torque_cmd_peak_Nm": {name: _f(np.abs(a["T_cmd"][:, i]).max()) for i, name in enumerate(T_NAMES)},
+            "saturated_fraction": _f(a["saturated"].any(axis=1).mean()),
+            "saturated_fraction_per_actuator": {name: _f(a["saturated"][:, i].mean())
+                                                for i, name in enumerate(T_NAMES)},
+            "constraint_drift_max_m": _f(a["drift_position"].max()),
+            "constraint_drift_max_rad": _f(a["drift_orientation"].max()),
+        })
+    ground = result.extra.get("ground")
+    if ground is not None:  # an engine with real contact (MuJoCo): falls and how the feet held on the ground
+        out.update({"fell": bool(ground["fell"]), "fall_time_s": ground["fall_time_s"],
+                    "fall_reason": ground["fall_reason"], "foot_slip_max_m": _f(ground["foot_slip_max_m"]),
+                    "foot_tilt_max_rad": _f(ground["foot_tilt_max_rad"]),
+                    "stance_tilt_max_rad": _f(ground["stance_tilt_max_rad"]),
+                    "penetration_max_m": _f(ground["penetration_max_m"]),
+                    "control_period_s": _f(ground["control_period_s"])})
+    td = [p.touchdown_error_m for p in result.phases if p.touchdown_error_m is not None]
+    out["toe_touchdown_error_max_m"] = _f(max(td)) if td else None
+    out["phase_log"] = [{"phase": p.index + 1, "name": p.name, "start": _f(p.t_start),
+                         "end": _f(p.t_end) if p.t_end is not None else None,
+                         "nominal_start": _f(p.nominal_start), "nominal_end": _f(p.nominal_end),
+                         "touchdown_error_m": p.touchdown_error_m, "landing_tilt_rad": p.landing_tilt_rad}
+                        for p in result.phases]
+    return out
+
+
+def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[str]) -> tuple[dict[str, Any], Any]:
+    """The ``contact`` section of summary.json and the :class:`humanoid_sim.analysis.audit.AuditReport` behind it (None,
+    and
+    ``{"error": message}``, when the log is inconsistent with the phase contact sets)."""
+    from humanoid_sim.analysis.audit import AuditError, audit_results
+
+    try:
+        report = audit_results({**result.log.arrays(), "phase_names": np.array(phase_names)}, hm,
+                               scenario.contact.friction_coefficient)
+    except AuditError as exc:
+        return {"error": str(exc)}, None
+    out = report.summary()
+    if "landings" in result.extra:   # an engine that welds landing feet: what each touchdown did (landing.py)
+        from humanoid_sim.engines.landing import landing_summary
+
+        out["landing"] = landing_summary(result.extra["landings"], scenario.contact.friction_coefficient)
+    return out, report
+
+
+def summarize_with_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
+                         phase_names: list[str]) -> dict[str, Any]:
+    """:func:`summarize` plus the contact-feasibility audit (:func:`contact_audit`) as its ``contact`` section, as
+    ``walk.py`` writes summary.json.  ``scenario``: the :class:`humanoid_sim.scenario.schema.Scenario` run (its name and
+    friction coefficient); ``phase_names``: the names of the logged phase indices (``result.phase_names``)."""
+    summary = summarize(result, scenario.name, engine)
+    summary["contact"] = contact_audit(result, scenario, hm, phase_names)[0]
+    summary.update(feasibility(summary))
+    return summary
+
+
+EDGE_VERDICT_TOL_M = 1e-3
+"""m: a centre of pressure up to this far outside its sole's edge still counts as on the sole in the feasibility
+verdict. A foot pivoting on an edge puts it just past the edge (MuJoCo's soft contact, up to tens of um); a walk that
+needs ground beyond its soles misses by centimetres."""
+
+
+def feasibility(summary: dict[str, Any]) -> dict[str, Any]:
+    """The verdict on whether real ground could carry the walk: ``{"feasible": bool, "feasibility_reason": str}``.
+
+    On an engine with real contact (MuJoCo) the ground is physical, so the walk is feasible unless it fell. On the
+    welded engines it is feasible when no foot pulls on the ground, no centre of pressure lies more than
+    :data:`EDGE_VERDICT_TOL_M` outside its sole, and no foot needs more friction than the scenario's coefficient.
+
+    Args:
+        summary: a run's summary with its ``contact`` section (:func:`contact_audit`).
+    """
+    if "fell" in summary:
+        if summary["fell"]:
+            return {"feasible": False, "feasibility_reason": f"fell on real ground: {summary['fall_reason']}"}
+        return {"feasible": True, "feasibility_reason": "stood on real (unilateral, frictional) ground"}
+    c = summary.get("contact", {})
+    if "error" in c or not c.get("steps"):
+        return {"feasible": None, "feasibility_reason": "no contact audit: " + c.get("error", "no logged step")}
+    problems = []
+    for foot in ("R", "L"):
+        pull, fric = c["pulling_fraction"][foot], c["friction_exceeded_fraction"][foot]
+        margin, outside = c["min_cop_margin_m"][foot], c["cop_outside_fraction"][foot]
+        if pull:
+            problems.append(f"foot {foot} pulls on the ground in {100 * pull:.0f} % of its contact steps")
+        if margin is not None and margin < -EDGE_VERDICT_TOL_M:
+            problems.append(f"foot {foot}'s centre of pressure lies outside its sole in {100 * outside:.0f} % of its "
+                            f"contact steps (up to {-1000 * margin:.0f} mm)")
+        if fric:
+            problems.append(f"foot {foot} needs more friction than mu = {c['friction_coefficient']:g} in "
+                            f"{100 * fric:.0f} % of its contact steps")
+    if problems:
+        return {"feasible": False, "feasibility_reason": "; ".join(problems)}
+    return {"feasible": True, "feasibility_reason": "every ground reaction inside its sole and friction cone"}

@@ -1,0 +1,271 @@
+"""The public API: run a walk from Python and read what it did.
+
+    import humanoid_sim as hs
+
+    run = hs.run_walk("sim1_zmp", engine="mujoco")   # a shipped scenario, or the path of a YAML file
+    print(run.status, run.summary["torque_peak_Nm"]["T3"])
+    df = run.log.to_pandas()                         # one row per logged step, columns "T.T3 [N m]", ...
+    run.write("results/sim1_zmp_mujoco")              # results.npz, summary.json, figures, playback.html
+
+``walk.py`` (``humanoid-walk``) and the sweeps run their walks through `run_walk`.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from humanoid_sim.analysis.summary import contact_audit, feasibility, summarize
+from humanoid_sim.engines import ENGINE_NAMES
+from humanoid_sim.errors import InputError
+from humanoid_sim.interfaces.log import SIGNALS, atomic_write_text
+from humanoid_sim.paths import scenario_path
+from humanoid_sim.robot.actuators import T_NAMES
+from humanoid_sim.robot.model import THETA_NAMES, HumanoidModel, load_model
+from humanoid_sim.scenario import Scenario, load_scenario
+from humanoid_sim.sim.loop import SimResult
+from humanoid_sim.sim.simulate import Simulator
+from humanoid_sim.sim.status import RunStatus
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
+    from humanoid_sim.analysis.audit import AuditReport
+    from humanoid_sim.interfaces.controller import Controller
+
+Engine = Literal["pinocchio", "thesis", "mujoco"]
+
+
+@lru_cache(maxsize=1)
+def robot() -> HumanoidModel:
+    """The thesis humanoid's model, loaded once per process (the URDF parse takes ~0.1 s)."""
+    return load_model()
+
+
+def _component_labels(name: str, shape: tuple[int, ...], hm: HumanoidModel) -> list[tuple[str, str]]:
+    """(label, unit) per component of one logged signal, in C order of its trailing axes."""
+    unit = SIGNALS[name][0] if name in SIGNALS else "-"
+    joints = [hm.model.names[j] for j in range(2, hm.model.njoints)]
+    xyz = ["x", "y", "z"]
+    if name in ("theta", "theta_dot", "theta_ddot", "theta_ddot_cmd"):
+        return [(n, unit) for n in THETA_NAMES]
+    if name in ("T", "T_cmd", "saturated"):
+        return [(n, unit) for n in T_NAMES]
+    if name == "q":
+        return ([(f"base_{a}", "m") for a in xyz] + [(f"base_quat_{a}", "-") for a in "xyzw"]
+                + [(j, "rad") for j in joints])
+    if name in ("v", "tau"):
+        lin, ang = ("m/s", "rad/s") if name == "v" else ("N", "N m")
+        return ([(f"base_v{a}", lin) for a in xyz] + [(f"base_w{a}", ang) for a in xyz]
+                + [(j, "rad/s" if name == "v" else "N m") for j in joints])
+    if name == "foot_wrench":
+        return [(f"{f}_{c}", "N" if c[0] == "f" else "N m") for f in "RL" for c in ("fx", "fy", "fz", "mx", "my", "mz")]
+    if name in ("body_force", "body_moment"):
+        return [(f"body{b}_{a}", unit) for b in (1, 2, 3, 4) for a in xyz]
+    if name == "cop":
+        return [(f"{f}_{a}", unit) for f in "RL" for a in xyz[:shape[-1]]]
+    if name == "in_contact":
+        return [(f, unit) for f in "RL"]
+    if len(shape) == 2 and shape == (3, 3):
+        return [(f"R{i}{j}", unit) for i in range(3) for j in range(3)]
+    if len(shape) == 1 and shape[0] in (2, 3):
+        return [(a, unit) for a in xyz[:shape[0]]]
+    return [("_".join(map(str, ix)), unit) for ix in np.ndindex(*shape)]
+
+
+@dataclass
+class RunLog:
+    """A run's log: every signal per logged step, with units (`SIGNALS`).
+
+    Attributes:
+        arrays: signal name -> array whose first axis is the logged step.
+        phase_names: the name of each index the ``phase`` column holds.
+    """
+
+    arrays: dict[str, np.ndarray]
+    phase_names: list[str]
+    hm: HumanoidModel = field(repr=False)
+
+    def __len__(self) -> int:
+        return len(self.arrays.get("t", ()))
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.arrays[name]
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Signal name -> unit."""
+        return {k: SIGNALS[k][0] for k in self.arrays if k in SIGNALS}
+
+    def to_pandas(self) -> pd.DataFrame:
+        """The log as a DataFrame: one row per logged step, indexed by time ``t [s]``.
+
+        Columns are named ``"<signal>.<component> [<unit>]"``: joints by their thesis names (``"theta.theta3 [rad]"``),
+        actuators by theirs (``"T.T3 [N m]"``), Pinocchio's coordinates by joint name, vectors by axis, feet by
+        ``R`` and ``L``; ``"phase_name"`` holds the phase's name.
+
+        Returns:
+            The log as a DataFrame.
+        """
+        import pandas as pd
+
+        cols: dict[str, np.ndarray] = {}
+        n = len(self)
+        for name, arr in self.arrays.items():
+            if name == "t":
+                continue
+            a = np.asarray(arr)
+            if a.ndim == 1:
+                cols[f"{name} [{SIGNALS.get(name, ('-',))[0]}]"] = a
+                continue
+            flat = a.reshape(n, -1)
+            for i, (label, unit) in enumerate(_component_labels(name, a.shape[1:], self.hm)):
+                cols[f"{name}.{label} [{unit}]"] = flat[:, i]
+        df = pd.DataFrame(cols, index=pd.Index(self.arrays["t"], name="t [s]"))
+        if "phase" in self.arrays and self.phase_names:
+            df["phase_name"] = [self.phase_names[int(k)] for k in self.arrays["phase"]]
+        return df
+
+
+@dataclass
+class Run:
+    """One walk: the scenario, how it ended, its summary and its log.
+
+    Attributes:
+        scenario: the validated scenario.
+        engine: the engine's name.
+        result: the stepping loop's record (phases, timings, the exception that ended the run).
+        summary: the numbers ``summary.json`` holds (tracking, torques, contacts, speed; SI units).
+        hm: the robot model.
+        traj: the reference trajectory the walk followed.
+        audit: the contact-feasibility audit behind ``summary["contact"]``, or None when it could not be made.
+    """
+
+    scenario: Scenario
+    engine: str
+    result: SimResult
+    summary: dict[str, Any]
+    hm: HumanoidModel = field(repr=False)
+    traj: Any = field(repr=False)
+    audit: AuditReport | None = field(default=None, repr=False)
+
+    @property
+    def status(self) -> RunStatus:
+        """How the run ended."""
+        return self.result.status
+
+    @property
+    def log(self) -> RunLog:
+        """The log's signals as arrays (and `RunLog.to_pandas`)."""
+        return RunLog(self.result.log.arrays(), list(self.result.phase_names), self.hm)
+
+    def write(self, out: str | Path, *, figures: bool = True, playback: bool = True) -> list[Path]:
+        """Write the run's outputs into the folder ``out`` (created if missing).
+
+        Args:
+            out: the output folder.
+            figures: also draw the figures (PNG).
+            playback: also write ``playback.html`` (a self-contained 3-D recording).
+
+        Returns:
+            The paths written: ``results.npz``, ``summary.json``, then the figures and the playback.
+        """
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        self.result.log.save(out / "results.npz", self.result.phase_names)
+        atomic_write_text(out / "summary.json", json.dumps(self.summary, indent=2) + "\n")
+        written = [out / "results.npz", out / "summary.json"]
+        if figures and self.audit is not None and len(self.result.log):
+            from humanoid_sim.outputs.plots.thesis import plot_all
+
+            written += plot_all(out / "results.npz", out, traj=self.traj, report=self.audit,
+                                mu=self.scenario.contact.friction_coefficient, title=self.scenario.name, hm=self.hm)
+        if playback and len(self.result.log):
+            from humanoid_sim.outputs.viewer import write_playback
+
+            written.append(write_playback(out / "results.npz", out / "playback.html", hm=self.hm, traj=self.traj))
+        return written
+
+
+def as_scenario(scenario: str | Path | Scenario) -> Scenario:
+    """A `Scenario` from a shipped scenario's name (``"sim1_zmp"``), a YAML path, or a Scenario.
+
+    Raises:
+        InputError: an unknown name, or a file that is not a valid scenario (the message names the field).
+    """
+    if isinstance(scenario, Scenario):
+        return scenario
+    return load_scenario(scenario_path(scenario))
+
+
+def prepare(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, compiled: bool | None = None,
+            controller: Controller | None = None) -> Simulator:
+    """The walk's `Simulator`: references planned, engine and controller set up.
+
+    Args:
+        scenario: a shipped scenario's name, a YAML path, or a `Scenario`.
+        engine: ``"pinocchio"`` (welded feet, the thesis's model), ``"mujoco"`` (real, unilateral contact) or
+            ``"thesis"`` (the NumPy transcription of the thesis's equations; slow).
+        compiled: use the compiled kernels (None: where numba is installed; False: the NumPy reference path).
+        controller: a controller object; None for the scenario's.
+
+    Raises:
+        InputError: a bad scenario or engine name, a controller that cannot be loaded, a walk the planner
+            cannot make.
+    """
+    if engine not in ENGINE_NAMES:
+        raise InputError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
+    return Simulator(robot(), as_scenario(scenario), compiled=compiled, engine=engine, controller=controller)
+
+
+def finish(sim: Simulator, result: SimResult) -> Run:
+    """The `Run` of a simulated walk: its summary and contact-feasibility audit."""
+    summary = summarize(result, sim.sc.name, sim.engine.name)
+    summary["contact"], report = contact_audit(result, sim.sc, sim.hm, result.phase_names)
+    summary.update(feasibility(summary))   # as summarize_with_audit, keeping the audit's report for the figures
+    return Run(sim.sc, sim.engine.name, result, summary, sim.hm, sim.traj, report)
+
+
+def run_walk(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, until: float | None = None,
+             compiled: bool | None = None, controller: Controller | None = None,
+             progress: Callable[[float, int], None] | None = None, out: str | Path | None = None,
+             figures: bool = False, playback: bool = False) -> Run:
+    """Simulate one walk and summarise it.
+
+    Args:
+        scenario: a shipped scenario's name (``"sim1"``, ``"sim1_zmp"``, ...; ``humanoid_sim.scenario_names()``
+            lists them), the path of a YAML file, or a `Scenario`.
+        engine: ``"pinocchio"`` (welded feet, the thesis's model), ``"mujoco"`` (real, unilateral contact) or
+            ``"thesis"`` (the NumPy transcription of the thesis's equations; slow).
+        until: stop at this simulated time, s (None: when every planned phase is done).
+        compiled: use the compiled kernels (None: where numba is installed; False: the NumPy reference path).
+        controller: a controller object (`Controller`); None for the
+            scenario's own.
+        progress: called after every step with the time (s) and the phase index.
+        out: also write the outputs into this folder (`Run.write`).
+        figures: with ``out``, draw the figures.
+        playback: with ``out``, write ``playback.html``.
+
+    Returns:
+        The `Run`. A walk that fails or falls returns normally: ``run.status`` says how it ended and
+        ``run.result.reason`` why; its log holds every step up to the failure.
+
+    Raises:
+        InputError: bad input (the message names the field, the value and what was expected).
+    """
+    if until is not None and not (isinstance(until, (int, float)) and until > 0):
+        raise InputError(f"until: expected a positive time in s, got {until!r}")
+    sim = prepare(scenario, engine, compiled=compiled, controller=controller)
+    run = finish(sim, sim.run(t_end=until, progress=progress))
+    if out is not None:
+        run.write(out, figures=figures, playback=playback)
+    return run
+
+
+__all__ = ["Engine", "Run", "RunLog", "as_scenario", "finish", "prepare", "robot", "run_walk"]

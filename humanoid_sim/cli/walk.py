@@ -1,0 +1,315 @@
+"""``walk``: run a scenario, save results and plots, optionally play it in meshcat.
+
+    python scripts/walk.py [SCENARIO] [--out DIR] [--engine pinocchio|thesis|mujoco] [--no-kernel] [--until SECONDS]
+                           [--no-plots] [--no-html] [--view]
+
+Exit status: 0 when the walk completes every planned phase, 1 when it fails (the reason is printed, the
+partial results are saved with completed = false) or is stopped by Ctrl-C or SIGTERM (which also stop the live
+meshcat server), 2 on bad input (nothing is written).  The first run after an install builds the compiled kernel's
+cache (:mod:`humanoid_sim.sim.builds`).  Outputs get the mode a plain ``open()`` gives; the figures and playback
+of an earlier run in the output folder are removed before this run writes its own, and the summary lists what it
+wrote.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from humanoid_sim.engines import ENGINE_NAMES
+from humanoid_sim.errors import ControllerError, HumanoidSimError, InputError
+from humanoid_sim.paths import SCENARIOS_DIR
+
+if TYPE_CHECKING:  # pragma: no cover
+    from humanoid_sim.sim.builds import KernelBuild
+
+DEFAULT_SCENARIO = SCENARIOS_DIR / "sim1.yaml"
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="walk.py", description="Simulate a humanoid walking scenario "
+                                "(Akalin 2010 re-implemented on Pinocchio).")
+    p.add_argument("scenario", nargs="?", type=Path, default=DEFAULT_SCENARIO,
+                   help="scenario YAML (default: scripts/params/sim1.yaml, the thesis's Simulation 1)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: results/<scenario name>/)")
+    p.add_argument("--engine", choices=ENGINE_NAMES, default="pinocchio",
+                   help="dynamics engine: the fast Pinocchio path (welded feet), "
+                        "the thesis's NumPy formulas (slow), or "
+                        "MuJoCo (real unilateral, frictional foot contact: would the walk stand?)")
+    p.add_argument("--no-kernel", action="store_true",
+                   help="run every stage on the NumPy reference path instead of the compiled kernel (about 4x "
+                        "slower; to try a change to the controller or dynamics code before porting it to "
+                        "its compiled twin, e.g. humanoid_sim/controllers/thesis/compiled.py)")
+    p.add_argument("--until", type=float, default=None, metavar="SECONDS",
+                   help="stop the simulation at this time (s)")
+    p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
+    p.add_argument("--no-html", action="store_true", help="do not write playback.html")
+    p.add_argument("--view", action="store_true", help="play the run live in a meshcat server on 127.0.0.1: prints "
+                   "the URL, waits for a browser, plays there; Ctrl-C stops the server")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def _fail_input(msg: str) -> int:
+    print(f"walk.py: error: {msg}", file=sys.stderr)
+    return 2
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an interrupt so that the run stops as after Ctrl-C: partial results saved, child
+    processes (the meshcat server, the kernel build) stopped."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
+def main(argv: list[str] | None = None) -> int:
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():  # signal handlers can only be set there
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+        try:
+            return _main(argv)
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+    return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
+    args = _parser().parse_args(argv)
+    if args.until is not None and not (args.until > 0):
+        return _fail_input(f"--until: expected a positive time in s, got {args.until}")
+    # Validate everything before any output is written.
+    from humanoid_sim.scenario.schema import ScenarioError, load_scenario
+
+    try:
+        scenario = load_scenario(args.scenario)
+    except ScenarioError as exc:
+        return _fail_input(str(exc))
+    out = args.out if args.out is not None else Path("results") / scenario.name
+    if out.exists() and not out.is_dir():
+        return _fail_input(f"--out: {out} exists and is not a folder")
+    try:
+        return _run(args, scenario, out)
+    except KeyboardInterrupt as exc:  # outside the simulation loop (which keeps its partial log itself)
+        what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+        print(f"walk.py: {what}; files already written are complete (atomic writes)", file=sys.stderr)
+        return 1
+
+
+def _build_kernel(args: argparse.Namespace, scenario) -> KernelBuild | None:
+    """Start compiling the kernel into numba's disk cache in child processes when this run needs it and the cache
+    is missing or stale (:mod:`humanoid_sim.sim.builds`); the running build, or None."""
+    import os
+
+    from humanoid_sim import kernel
+
+    if args.engine not in ("pinocchio", "mujoco") or args.no_kernel or not kernel.AVAILABLE:
+        return None
+    if os.environ.get("HUMANOID_SIM_KERNEL_BUILD", "1") == "0":  # compile in this process, the ordinary way
+        if not kernel.cache_present() and not args.quiet:
+            print("walk.py: compiling the simulation kernel in this process (HUMANOID_SIM_KERNEL_BUILD=0: up to a "
+                  "minute)", file=sys.stderr)
+        return None
+    from humanoid_sim.sim import builds as build
+
+    parts = build.parts_for(scenario)
+    if build.cache_ready(parts):
+        return None
+    if not args.quiet:
+        print("walk.py: compiling the simulation kernel (first run after an install or an edit of "
+              "a compiled module; numba caches it for later runs)", file=sys.stderr)
+    return build.KernelBuild(args.scenario, parts).start()
+
+
+def _wait_kernel(running: KernelBuild, quiet: bool) -> None:
+    """Wait for a :class:`KernelBuild`, showing its progress; a failed build is reported and left to numba."""
+    from humanoid_sim.sim.builds import KernelBuildError
+
+    bar = None
+    if not quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(running.parts), bar_format="  kernel: {n}/{total} parts compiled [{elapsed}] {desc}",
+                   file=sys.stderr)
+    try:
+        def done(part: str, elapsed: float) -> None:
+            if bar is not None:
+                bar.set_description_str(f"{part} done at {elapsed:.1f} s", refresh=False)
+                bar.update(1)
+
+        # the elapsed time ticks on a terminal; elsewhere (a log file) only the finished parts are printed
+        running.wait(progress=done, tick=(bar.refresh if bar is not None and sys.stderr.isatty() else None))
+    except KernelBuildError as exc:
+        print(f"walk.py: warning: {exc}; compiling in this process instead (up to a minute)", file=sys.stderr)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _run(args: argparse.Namespace, scenario, out: Path) -> int:
+    """Simulate a validated scenario and write its outputs into ``out``; the exit status."""
+    from humanoid_sim import api
+
+    running = _build_kernel(args, scenario)
+    try:
+        hm = api.robot()
+        if running is not None:
+            _wait_kernel(running, args.quiet)
+    finally:
+        if running is not None:
+            running.stop()
+    if args.engine == "mujoco" and not args.no_kernel:
+        from humanoid_sim.engines.mujoco import compiled as mujoco_compiled
+        from humanoid_sim.sim.builds import build_mujoco_reads
+
+        if not mujoco_compiled.cache_ready():   # before the progress bar: it would sit at 0 for ~5 s
+            if not args.quiet:
+                print("walk.py: compiling the MuJoCo engine's ground reads (first run after an install: ~5 s, "
+                      "cached for later runs)", file=sys.stderr)
+            build_mujoco_reads(hm, scenario)
+    from humanoid_sim.references.zmp import GaitError
+
+    if scenario.gait.is_zmp and not args.quiet:
+        print("walk.py: planning the zmp_preview gait (ZMP preview control and its multibody correction: a few "
+              "seconds per 10 s of walk)", file=sys.stderr)
+    try:
+        sim = api.prepare(scenario, args.engine, compiled=False if args.no_kernel else None)
+    except GaitError as exc:   # the planner cannot make this path's zmp_preview gait
+        return _fail_input(f"{scenario.source}: gait.hip_reference: zmp_preview cannot plan this walk: {exc}")
+    except InputError as exc:
+        return _fail_input(f"{scenario.source}: {exc}")
+    t_nominal = sim.traj.phases[-1].t_end
+    bar = None
+    progress = None
+    total = round(args.until if args.until is not None else t_nominal, 2)
+    if not args.quiet:
+        from tqdm import tqdm
+
+        # no {postfix} (tqdm prefixes it with ", "): the phase goes into {desc}, at the end of the line
+        bar = tqdm(total=total, unit="sim s", file=sys.stderr,
+                   bar_format="{percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} sim s [{elapsed}<{remaining}] {desc}")
+
+        def progress(t: float, k: int) -> None:
+            now = min(round(t, 2), total)  # never past the total: tqdm would warn and count time backwards
+            if now > bar.n:
+                bar.update(now - bar.n)
+                bar.n = now  # exactly, without the round-off of accumulated increments
+            bar.set_description_str(f"phase {k + 1}/{sim.traj.n_phases} {sim.traj.phases[k].name}", refresh=False)
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return _fail_input(f"--out: cannot create {out}: {exc}")
+    result = sim.run(t_end=args.until, progress=progress)
+    if bar is not None:
+        if result.status.reached_end:  # the walk reached its end: the bar shows it whatever the last step's time
+            bar.n = total
+            bar.refresh()
+        bar.close()
+    run = api.finish(sim, result)
+    stale = _remove_stale_outputs(out)
+    written = run.write(out, figures=not args.no_plots, playback=not args.no_html)
+    figures = [p for p in written if p.suffix == ".png"]
+    html = next((p for p in written if p.suffix == ".html"), None)
+    _print_summary(run.summary, out)
+    _print_outputs(args, out, figures, html, stale, len(result.log))
+    if args.view and len(result.log):
+        from humanoid_sim.outputs.viewer import play_live
+
+        play_live(out / "results.npz", hm=hm, traj=sim.traj)
+    if not result.status.reached_end:
+        print(f"walk.py: run failed: {result.reason}", file=sys.stderr)
+        if _raised_elsewhere(result.error):
+            print(result.traceback.rstrip(), file=sys.stderr)
+        return 1
+    return 0
+
+
+def _raised_elsewhere(error: BaseException | None) -> bool:
+    """Whether the error that ended a run came from code outside the simulator's own checks (a controller's
+    exception, or an unexpected error): its traceback then shows the file and line that raised."""
+    if error is None:
+        return False
+    if isinstance(error, ControllerError):
+        return error.__cause__ is not None
+    return not isinstance(error, HumanoidSimError)
+
+
+def output_names() -> list[str]:
+    """Every file name walk.py may write into its output folder besides results.npz and summary.json (figures,
+    figures of earlier versions, playback.html)."""
+    from humanoid_sim.outputs.plots.thesis import FIGURES, LEGACY_STEMS
+
+    return [f"{stem}.png" for stem in FIGURES + LEGACY_STEMS] + ["playback.html"]
+
+
+def _remove_stale_outputs(out: Path) -> list[str]:
+    """Remove the figures and playback an earlier run left in ``out`` (only walk.py's own file names), so that none
+    passes for this run's; the names removed.  This run then writes its own."""
+    removed = []
+    for name in output_names():
+        path = out / name
+        if path.is_file():
+            path.unlink()
+            removed.append(name)
+    return removed
+
+
+def _print_outputs(args: argparse.Namespace, out: Path, figures: list[Path], html: Path | None, stale: list[str],
+                   steps: int) -> None:
+    written = {p.name for p in figures} | ({html.name} if html is not None else set())
+    parts = ["results.npz", "summary.json"]
+    parts.append(f"{len(figures)} figures (*.png)" if figures else
+                 "no figures (" + ("--no-plots" if args.no_plots else "nothing to plot" if not steps else
+                                   "the contact audit failed") + ")")
+    parts.append("playback.html" if html is not None else
+                 "no playback.html (" + ("--no-html" if args.no_html else "nothing to play" if not steps else
+                                         "meshcat missing") + ")")
+    print(f"  outputs in {out}/: " + ", ".join(parts))
+    gone = sorted(set(stale) - written)
+    if gone:
+        print(f"  removed {len(gone)} outputs of an earlier run that this run did not write: "
+              + ", ".join(gone[:4]) + (", ..." if len(gone) > 4 else ""))
+
+
+FEASIBLE_WALK = "python scripts/walk.py scripts/params/sim1_zmp.yaml --engine mujoco"
+"""The command the console points to when a walk's contacts are infeasible."""
+
+
+def _print_summary(s: dict, out: Path) -> None:
+    if s.get("feasible") is False:
+        print(f"INFEASIBLE CONTACTS: {s['feasibility_reason']}. Real ground could not carry this walk, so its torques "
+              f"are not a design load. The feasible walk: {FEASIBLE_WALK}")
+    status = s["status"] if s["status"] in ("completed", "stopped") else s["status"].upper()
+    print(f"{s['scenario']}: {status} -- {s['reason']}")
+    print(f"  phases {s['phases_completed']}/{s['phases_planned']}, sim {s['sim_time_s']:.2f} s in "
+          f"{s['wall_time_s']:.2f} s wall (real-time factor {s['real_time_factor']:.1f}"
+          + (f", {s['compiled_stages']} of {s['compiled_stages'] + s['reference_stages']} stages compiled)"
+             if "compiled_stages" in s else ")"))
+    if "hip_com_error_rms_m" in s:
+        peak = max(s["torque_peak_Nm"].items(), key=lambda kv: kv[1] or 0.0)
+        td = s["toe_touchdown_error_max_m"]
+        print(f"  hip CoM error rms {s['hip_com_error_rms_m'] * 1000:.1f} mm, max "
+              f"{s['hip_com_error_max_m'] * 1000:.1f} mm; hip yaw error rms {s['hip_yaw_error_rms_rad']:.3f} rad")
+        print(f"  touchdown error max {td * 1000:.1f} mm" if td is not None else "  no touchdown")
+        print(f"  peak torque {peak[0]} {peak[1]:.1f} N m; saturated {100 * s['saturated_fraction']:.1f} % of "
+              f"steps; weld drift max {s['constraint_drift_max_m']:.2e} m")
+    c = s.get("contact", {})
+    if "error" in c:
+        print(f"  contact audit failed: {c['error']}")
+    elif c.get("steps"):
+        pct = lambda x: "n/a" if x is None else f"{100 * x:.0f} %"  # noqa: E731
+        fmin = ", ".join(f"{k} {v:.0f} N" for k, v in c["min_normal_force_N"].items() if v is not None)
+        print(f"  contact feasibility (mu {c['friction_coefficient']:g}): min normal force {fmin}; CoP outside "
+              f"the sole R {pct(c['cop_outside_fraction']['R'])} / L {pct(c['cop_outside_fraction']['L'])}; "
+              f"friction exceeded R {pct(c['friction_exceeded_fraction']['R'])} / "
+              f"L {pct(c['friction_exceeded_fraction']['L'])}; ZMP outside {pct(c['zmp_outside_fraction'])}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,579 @@
+"""A whole-body controller that keeps every ground reaction feasible: task-space inverse dynamics as one QP.
+
+The thesis's controller (5.1/5.2) cannot carry a balanced gait: its one-step prediction lags the planned CoM
+acceleration around every double support, its orientation task (the diagonal of the rotation matrix) has no
+first-order restoring term, and its double-support split of the ground reaction ignores the soles.  This
+controller, in the family of TSID / PlaCo / mink, solves at each call
+
+    min over x = [a (nv); lam (m)]   sum_tasks w_i |A_i a - b_i|^2  +  w_a |a|^2 + w_lam |lam|^2 + w_tau |tau|^2
+    s.t.  M a + h = S^T tau + J^T lam  on the six base rows (no actuator there),
+          J a = -gamma                  (the phase's welds and toe lock, as the engine enforces them),
+          lam_lock = j_toe . W_t        (the toe lock carries only what the ground pushes under the toe box),
+          every foot's ground wrench inside its sole and friction cone (linear inequalities in lam),
+
+and returns tau = (M a + h - J^T lam) on the joints, with (a, lam) as the motion (the weld engine then does not
+solve its forward dynamics again: the same (a, lam) by uniqueness).  The QP is solved by DAQP (a dual active-set
+method for small dense QPs, exact to its 1e-6 feasibility tolerance; its optimum matches quadprog's:
+``tests/controllers/test_balance_controller.py``).  The QP's matrices: :func:`.qp.qp_numpy` (reference) or
+:mod:`.compiled` (numba; the records of its arguments: :mod:`.stage`).
+
+The stance foot's toe joint: the thesis leaves its torque zero and lets the lock hold it (K-10); on real ground
+nothing locks it, so here its motor holds it (the lock's multiplier is only the toe box's ground load, the torque
+within the toe's 30 N m limit), which on the weld engine is the same motion.
+
+Contact model: the phase's welds (humanoid_sim.robot.phases; the engine's ``WeldModel``, or on an engine without one --
+MuJoCo -- the same rows built here).  A foot's ground wrench is its weld's multipliers (LOCAL [force; moment] at
+the welded frame), the whole foot in single support (main body welded, toe locked: the whole sole), the toe body in
+double support for the trailing foot (its toe part of the sole).  A flat foot carries two ground wrenches, one on
+its heel box (main body, heel to toe joint) and one on its toe box (toe body): the toe box's wrench W_t reaches the
+main-body weld as X W_t and the toe lock as j_toe . W_t, so the toe's motor is asked for exactly what the ground
+pushes under the toe (a welded model that put the whole ground wrench on the main body let a real stance foot fold
+at its toe joint when its CoP passed the joint line).  The sole geometry is the URDF's
+(:class:`humanoid_sim.robot.sole.SoleGeometry`), so the contact audit measures what is constrained here.  Per loaded
+foot: f_z >= 0; the centre of pressure inside the sole shrunk by ``cop_margin_ssp_m`` (single support) or
+``cop_margin_dsp_m``; tangential force inside the friction pyramid inscribed in the cone of
+``scenario.contact.friction_coefficient`` times ``friction_safety`` (the gait itself needs |f_t|/f_z of ~0.1; near
+the full cone the QP leans on a just-landed, lightly loaded foot up to its friction limit and on real ground that
+foot slides); a torsion bound.  Every actuator component the thesis's saturation limits (humanoid_sim.robot.actuators;
+T linear in tau) stays within ``torque_margin`` of its limit (those rows join the QP only when its optimum without
+them breaks one: ``lazy_torque_limits``, the same optimum).  When no motion satisfies them (the state is already
+beyond recovery), the CoP margins are dropped, then every inequality; ``run_info`` counts such calls.
+
+Tasks, world frame (LOCAL_WORLD_ALIGNED), each a PD on the error plus the reference's acceleration:
+- Body-17 CoM (frame Pc_17): ``traj.hip_reference`` / ``traj.hip_acceleration``; gains ``hip_omega`` (rad/s,
+  critically damped);
+- Body-17 orientation (O_17): the rotation-vector error log3(R_ref R^T), the reference's yaw rate and yaw
+  acceleration; ``trunk_omega``;
+- single support: the swing toe point, and the swing toe body's and main body's orientations (``traj.toe_reference``;
+  both bodies at the toe body's reference, so the foot stays flat and lands flat; the feed-forward acceleration is
+  the reference velocity's central difference over ``ff_dt_s``, ramped in over ``swing_ramp_s`` because the
+  thesis's toe path starts with a step of 4-5 m/s^2); ``swing_omega``; the main body's reference starts at the heel
+  lift the foot left the ground with (measured at lift-off: on welds the toe-off's full ``heel_lift_rad``, on real
+  ground less, the loaded heel box holds it back) and returns to flat over ``heel_return_time_s`` (a step back to
+  flat kicks the stance foot); on real ground (an engine without a weld model) the last 20 % of the swing aims
+  ``landing_depth_m`` below the path, so that the sole meets the ground on time (the swing foot lags its path by a
+  few mm); on welds the geometric rule lands the foot on its path (aiming below pushes sole corners into the
+  ground); a swing that outlasts its nominal duration keeps lowering the foot at ``landing_search_mps`` until
+  touchdown is sensed;
+- double support: the trailing foot (held by its toe) lifts its heel by ``heel_lift_rad`` (smoothstep over the
+  phase or ``heel_lift_time_s``, whichever is shorter): the toe-off the toe weld assumes;
+- every joint toward its initial angle (``posture_omega``; weights ``w_posture`` on the legs and the toe joints,
+  ``w_upper`` on the upper body);
+- double support: the trailing foot's normal force, weighted ``w_unload`` u^2 (u: the phase's progress), so the
+  weight has left it when it lifts (without it the QP shares the load to the end, which lowers the joint torques,
+  and the foot lifts still loaded; as a hard constraint, the load capped to zero at the phase end, walks fell).
+The references run on the plan's clock (``time_shift``): when a phase starts later than planned (a touchdown
+sensed late on real ground), every reference is read that much earlier, so the plan waits for the foot instead of
+moving the hip on and starting the next swing part-way along its path.
+One call: the references (Python, the trajectory's), Pinocchio's joint Jacobians with their time variation, M and h,
+one compiled call that does the rest up to the QP (placements, frame motions, the weld and lock rows, the task rows,
+the QP's matrices: :func:`.compiled.balance_stage`, the twin of :meth:`BalanceController._qp_reference`), DAQP, and
+a compiled call for tau and the thesis torques (:func:`.compiled.balance_finish`).
+``tests/controllers/test_balance_compiled.py`` runs both paths on every call of walks on welds and on MuJoCo.
+Units: SI (m, rad, N, N m, s).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from humanoid_sim import kernel as _kernel
+from humanoid_sim.controllers.balance.compiled import balance_finish, balance_stage
+from humanoid_sim.controllers.balance.qp import BalanceTables, BoxWrenches, pd, qp_numpy, rot_y
+from humanoid_sim.controllers.balance.stage import FOOT_OF_MAIN, CompiledStage
+from humanoid_sim.controllers.balance.targets import T_HEEL_ANGLE, TARGET_SIZE, Targets, pack_hip, pack_swing
+from humanoid_sim.interfaces.controller import Command, ControlContext, ControllerError, Observation
+from humanoid_sim.kernel.records import State
+from humanoid_sim.references.chapter3.polynomials import smoothstep
+from humanoid_sim.robot.actuators import Actuators
+from humanoid_sim.robot.phases import FOOT_SPECS, TOE_POINT_FRAME, Phase
+from humanoid_sim.robot.sole import SoleGeometry
+from humanoid_sim.scenario.balance import BalanceSettings
+
+LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_DAQP_INF = 1e30          # DAQP reads a bound of 1e30 or more as no bound
+_DAQP_EQUALITY = 5        # DAQP's constraint sense: an equality row
+_DAQP_OPTIMAL = 1         # DAQP's exit flag of an optimal solution
+_FOOT_OF_MAIN = FOOT_OF_MAIN                                                    # O_3 -> R, O_4 -> L
+_TOE_FRAMES = {spec.toe_frame for spec in FOOT_SPECS.values()}                  # O_1, O_2
+_NO_SATURATION = np.zeros(26, dtype=bool)                                       # shared: read-only
+_NO_SATURATION.flags.writeable = False
+
+
+def _own_trajectories() -> tuple[type, ...]:
+    from humanoid_sim.references.chapter3 import ReferenceTrajectory
+    from humanoid_sim.references.zmp.zmp_walk import ZmpPreviewTrajectory
+
+    return ReferenceTrajectory, ZmpPreviewTrajectory
+
+
+_OWN_TRAJECTORIES = _own_trajectories()
+
+
+class BalanceController:
+    """See the module docstring.  ``settings``: :class:`BalanceSettings` (None = defaults)."""
+
+    name = "balance"
+
+    def __init__(self, settings: BalanceSettings | None = None, compiled: bool = True) -> None:
+        """``compiled``: when numba is installed, build the QP and read its solution in two compiled calls
+        (``controllers.balance.compiled.balance_stage`` / ``balance_finish``); else, or False, the NumPy / Pinocchio
+        reference
+        (:meth:`_qp_reference`, :func:`qp_numpy`): the same command to round-off."""
+        self.compiled = bool(compiled)
+        if settings is not None and not isinstance(settings, BalanceSettings):
+            raise ValueError(f"settings: expected a BalanceSettings or None, got {type(settings).__name__}")
+        self.settings = settings or BalanceSettings()
+        self.calls = 0
+        self.relaxed_cop = 0
+        self.relaxed_all = 0
+        self.torque_rows = 0    # calls whose QP was solved with the actuator-limit rows (see lazy_torque_limits)
+
+    # ------------------------------------------------------------------ set-up
+    def setup(self, ctx: ControlContext) -> None:
+        from humanoid_sim.dynamics.contact import ContactDynamics
+        from humanoid_sim.dynamics.welds import WeldModel
+
+        try:
+            import daqp
+        except ImportError as exc:   # pragma: no cover - a declared dependency
+            raise ControllerError("the balance controller needs daqp (pip install daqp)") from exc
+        self._daqp = daqp.solve
+        hm = ctx.hm
+        self.hm, self.model, self.traj = hm, hm.model, ctx.traj
+        cons = ctx.constraints
+        if getattr(cons, "kind", None) == "oracle":
+            raise ControllerError("the balance controller runs on the weld model; the oracle engine offers the "
+                                  "thesis's 122 x 122 equations only (use --engine pinocchio or mujoco)")
+        self._real_ground = not isinstance(cons, WeldModel)
+        self.weld = cons if isinstance(cons, WeldModel) else WeldModel(ContactDynamics(hm.model))
+        self.dyn = self.weld.dyn
+        self.act = Actuators(hm)
+        self.sole = SoleGeometry.from_model(hm)
+        mu = float(ctx.scenario.contact.friction_coefficient) * self.settings.friction_safety
+        self.mu = mu / math.sqrt(2.0)          # the pyramid |fx|, |fy| <= mu' fz lies inside the cone |f_t| <= mu fz
+        # a sole spinning about its CoP resists with at most ~ mu fz times a third of its half-width (a uniform
+        # pressure on a disc of that radius gives 2/3 r): conservative, the yaw moment a weld can otherwise hold
+        self.torsion = mu * self.sole.width / 6.0
+        fid = hm.frame_id
+        self.fid = {n: fid(n) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2", "O_3", "O_4")}
+        self.theta0 = hm.theta_from_q(ctx.q0)
+        nv = self.model.nv
+        self.nv = nv
+        self._Jpost = np.zeros((26, nv))                            # theta_dot = Jpost v (q = sign * theta)
+        self._Jpost[np.arange(26), np.asarray(hm.theta_v_idx, dtype=int)] = hm.theta_sign
+        self._upper = np.zeros(26, dtype=bool)
+        self._upper[16:] = True                                     # theta18..theta27 (eq. 4.5)
+        s = self.settings
+        self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
+        self._lift_k, self._lift0 = -1, 0.0     # the swing (its phase index) and its heel lift at lift-off, rad
+        self._dsp_k, self._dsp_t0 = -1, 0.0     # the double support (its phase index) and its start, plan's clock, s
+        self._box_cache: dict[tuple, np.ndarray] = {}
+        self._task_buffers: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        # the components linear in tau (revolute and spherical joints; the shoulders' are not) and their bounds
+        self._exact = self.act.component_map(ctx.q0)[1]
+        self._exact_limits = self.act.limits[self._exact] * s.torque_margin
+        self._box_kinds: dict[Phase, np.ndarray] = {}
+        self._bounds: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}   # DAQP's row kinds, upper bounds
+        self._boxes: dict[bool, tuple[np.ndarray, ...]] = {}      # heel, toe, whole-sole rows; by double support
+        self._stage = CompiledStage(self) if self.compiled and _kernel.AVAILABLE else None
+        self._kin_data = self.model.createData()
+        self._tgt = np.zeros(TARGET_SIZE)
+        self._gains = np.array([*pd(s.hip_omega), s.w_hip, *pd(s.trunk_omega), s.w_trunk, *pd(s.swing_omega),
+                                s.w_swing, *pd(s.posture_omega)], dtype=float)
+        self._tables: dict[bool, BalanceTables] = {}     # the QP's constant inputs; by double support
+
+    def _reference_time(self, obs: Observation) -> float:
+        """The time at which the references are read, s: the plan's clock ``obs.t - obs.plan_delay`` (``time_shift``
+        on), so that every reference (hip plan, swing path, toe-off) waits for a late touchdown.  On real ground a
+        touchdown is sensed, not scheduled: a foot that lands 0.07 s late would otherwise start the next swing 0.07 s
+        into its path (the swing foot lags its reference by ~1 cm and is kicked toward it, rocking the stance foot)
+        and the hip plan would move on to a foot that is not down yet.  The phase selector keeps that delay (it also
+        ends double supports on the same clock): only touchdowns count, and early ones do not move the plan forward."""
+        return obs.t - obs.plan_delay if self.settings.time_shift else obs.t
+
+    def run_info(self) -> dict:
+        """For the run's summary: calls, and calls whose contact constraints had to be relaxed."""
+        return {"balance_calls": self.calls, "balance_relaxed_cop": self.relaxed_cop,
+                "balance_relaxed_all": self.relaxed_all}
+
+    # ------------------------------------------------------------------ one call
+    def __call__(self, obs: Observation) -> Command:
+        self.calls += 1
+        k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
+        s = self.settings
+        tg = self._targets(obs)
+        # each flat foot (main body welded, toe locked) carries two ground wrenches, on its heel box and on its toe
+        # box (see the module docstring); the box rows and weights of this phase
+        welds = phase.contacts.welds
+        kinds = self._box_kinds.get(phase)
+        if kinds is None:
+            locks = phase.contacts.locks
+            kinds = self._box_kinds[phase] = np.array(
+                [0 if f in _FOOT_OF_MAIN and FOOT_SPECS[_FOOT_OF_MAIN[f]].toe_joint in locks else
+                 1 if f in _TOE_FRAMES else 2 for f in welds], dtype=np.int64)
+        unload = np.zeros(len(welds))   # double support: the trailing toe's normal force weighted w_unload u^2
+        if phase.is_double_support and s.w_unload > 0.0:
+            info = self.traj.phases[k]
+            u = min(1.0, max(0.0, (tg.t - info.t_start) / info.duration))
+            for i, frame in enumerate(welds):
+                if frame in _TOE_FRAMES:
+                    unload[i] = s.w_unload * u * u
+        boxes = self._boxes.get(phase.is_double_support)
+        if boxes is None:
+            sole = self.sole
+            jx, _, jz = sole.toe_joint
+            margin = s.cop_margin_dsp_m if phase.is_double_support else s.cop_margin_ssp_m
+            boxes = self._boxes[phase.is_double_support] = (
+                self._box_rows(sole.heel_back_x, jx, sole.sole_z, margin),
+                self._box_rows(0.0, sole.toe_front_x - jx, sole.sole_z - jz, margin),
+                self._box_rows(sole.heel_back_x, sole.toe_front_x, sole.sole_z, margin))
+        tables = self._tables.get(phase.is_double_support)
+        if tables is None:
+            tables = self._tables[phase.is_double_support] = BalanceTables(
+                self._gains, self._w_joint, float(s.heel_lift_rad), *boxes, float(s.w_acc), float(s.w_force),
+                float(s.w_torque))
+        build = self._qp_compiled if self._stage is not None else self._qp_reference
+        G, g, C, lo, ne, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, tables, unload)
+        nv, m = self.nv, Jc.shape[0]
+
+        # actuator limits |T| <= limit for the components linear in tau (T = P tau, tau = Tx x + h).  They rarely
+        # bind (the toes' 30 N m), so by default the QP is first solved without them; its optimum is the full QP's
+        # whenever it satisfies them (a relaxation's optimum that is feasible for the full problem is optimal for
+        # it), else the QP is solved again with them.  44 fewer rows make DAQP's set-up (a factorisation over every
+        # row) cheaper, and the component map is not needed
+        x = None
+        if s.lazy_torque_limits:
+            x, level = self._solve(G, g, C, lo, ne, cop_rows)
+            a, lam, tau, T_cmd, over = self._finish(x, M, h, Jc, q, v, kin)
+            if over:
+                x = None
+        if x is None:
+            self.torque_rows += 1
+            P, _ = self.act.component_map(q, kin[0])
+            P, lim = P[self._exact], self._exact_limits
+            PT = P[:, 6:] @ Tx
+            Ph = P[:, 6:] @ h[6:]
+            x, level = self._solve(G, g, np.vstack([C, -PT, PT]), np.concatenate([lo, Ph - lim, -Ph - lim]), ne,
+                                   np.concatenate([cop_rows, np.zeros(2 * len(lim), dtype=bool)]))
+            a, lam, tau, T_cmd, _ = self._finish(x, M, h, Jc, q, v, kin)
+        if self._inside:          # the compiled finish checked the limits: nothing to clip (the usual case)
+            T_sat, sat = T_cmd.copy(), _NO_SATURATION
+        else:
+            T_sat, sat = self.act.saturate(T_cmd)
+        extra = {"balance_level": level, "box_wrenches": BoxWrenches(x, X, kinds, welds, nv, m)}
+        if sat is not _NO_SATURATION and sat.any():
+            B = self.act.torque_map(q, kin[0])
+            tau = tau + B @ (T_sat - T_cmd)
+            tau[:6] = 0.0
+            return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, extra=extra)
+        if self._log is not None:
+            # what the weld engine logs at a stage (``stage.StageOutput`` layout): the compiled path does not leave
+            # the engine's shared Pinocchio data at this state, as the reference path's prepare does
+            extra["kernel_log"] = self._log
+        return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=self._thdd,
+                       motion=(a, lam), motion_model=self.weld, extra=extra)
+
+    def _targets(self, obs: Observation) -> Targets:
+        """The references of this call on the plan's clock (they depend on time only, not on the state): the hip's,
+        and the swing foot's (its feed-forward ramped in, the landing depth and search on real ground) or the
+        trailing heel's lift in double support."""
+        s = self.settings
+        k, phase = obs.k, obs.phase
+        t = self._reference_time(obs)   # the plan's clock: it waits for a late touchdown
+        traj = self.traj
+        # the package's own trajectories answer the hip's two queries in one evaluation and the toe's velocity
+        # alone (the same numbers); any other (a user's, or a wrapper overriding a query) through the interface
+        own = type(traj) in _OWN_TRAJECTORIES
+        if own:
+            tg = Targets(t=t, hip=traj.hip_targets(k, t))
+        else:
+            p_ref, v6_ref, R_ref = traj.hip_reference(k, t)
+            tg = Targets(t=t, hip=(p_ref, v6_ref, R_ref, traj.hip_acceleration(k, t)))
+        info = traj.phases[k]
+        if info.swing_foot is not None:
+            foot = info.swing_foot
+            pt, v6, Rr = traj.toe_reference(k, t, foot)
+            hdt = s.ff_dt_s
+            if own:
+                a_ff = (traj.toe_velocity(k, t + hdt, foot) - traj.toe_velocity(k, t - hdt, foot)) / (2.0 * hdt)
+            else:
+                a_ff = (traj.toe_reference(k, t + hdt, foot)[1] - traj.toe_reference(k, t - hdt, foot)[1]) \
+                    / (2.0 * hdt)
+            # the thesis's toe path starts with a step in acceleration (4-5 m/s^2, 3 rad/s^2 of yaw): its feed-forward
+            # is ramped in over swing_ramp_s (smoothstep), or the swing leg's reaction jolts the stance foot
+            xs = (t - info.t_start) / s.swing_ramp_s
+            if xs < 1.0:
+                a_ff = a_ff * smoothstep(max(xs, 0.0))
+            # aim the last 20 % of the swing landing_depth_m below the path (smoothstep): on real ground the sole
+            # then meets the ground on time and presses it (the path ends with the sole ~0.5 mm above it)
+            u = (t - info.t_start) / info.duration
+            depth = s.landing_depth_m if self._real_ground else 0.0
+            if u > 0.8 and depth > 0.0:
+                x = min(1.0, (u - 0.8) / 0.2)
+                # depth times a smoothstep, written out: depth * smoothstep(x) rounds differently
+                pt = pt - np.array([0.0, 0.0, depth * x * x * (3.0 - 2.0 * x)])
+                v6 = v6.copy()
+                v6[2] -= depth * 6.0 * x * (1.0 - x) / (0.2 * info.duration)
+            late = t - info.t_end
+            if late > 0.0:   # the foot has not landed on schedule (real ground): keep lowering it until it does
+                pt = pt - np.array([0.0, 0.0, s.landing_search_mps * late])
+                v6 = v6.copy()
+                v6[2] -= s.landing_search_mps
+                a_ff = np.zeros(6)
+            tg.swing = (foot, pt, v6, Rr, a_ff, (t - info.t_start) / s.heel_return_time_s)
+        elif phase.is_double_support:
+            # the trailing foot, held by its toe: lift its heel (toe-off) so that only the toe part touches, as the
+            # contact model (toe weld) assumes; on real ground a flat trailing foot would carry load on its heel
+            # the ramp starts when this double support does: its planned start, or earlier after an early touchdown
+            # (the plan's clock waits for a late one, not for an early one)
+            if self._dsp_k != k:
+                self._dsp_k, self._dsp_t0 = k, min(t, info.t_start)
+            x = min(1.0, max(0.0, (t - self._dsp_t0) / min(info.duration, s.heel_lift_time_s)))
+            tg.heel = ("R" if phase.support_foot == "L" else "L", s.heel_lift_rad * x * x * (3.0 - 2.0 * x))
+        return tg
+
+    def _qp_reference(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,
+                      unload: np.ndarray) -> tuple:
+        """The QP with Pinocchio's frame quantities and :func:`qp_numpy` (the reference of :meth:`_qp_compiled`).
+        Returns :func:`qp_numpy`'s outputs, the constraint rows, X per flat foot, h and the Data holding the
+        kinematics."""
+        s = self.settings
+        k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
+        model, d = self.model, self.dyn.data
+        rows = self.dyn.prepare(phase.contacts, obs.anchors, q, v)   # kinematics, Jacobians, M (upper), nle
+        pin.updateFramePlacements(model, d)
+        A, b, w = self._task_rows(k, phase)                    # task Jacobians (rows x nv), targets, weights
+        r = [0]                                                # the next free row of A, b, w
+
+        def task(J: np.ndarray, acc_des: np.ndarray, drift: np.ndarray, wt: float) -> None:
+            i = r[0]
+            j = i + J.shape[0]
+            A[i:j] = J
+            b[i:j] = acc_des - drift
+            w[i:j] = wt
+            r[0] = j
+
+        # Body-17 CoM and orientation
+        p_ref, v6_ref, R_ref, a6_ref = tg.hip
+        f = self.fid["Pc_17"]
+        kp, kd = pd(s.hip_omega)
+        task(pin.getFrameJacobian(model, d, f, LWA)[:3],
+             a6_ref[:3] + kp * (p_ref - d.oMf[f].translation)
+             + kd * (v6_ref[:3] - pin.getFrameVelocity(model, d, f, LWA).linear),
+             pin.getFrameClassicalAcceleration(model, d, f, LWA).linear, s.w_hip)
+        f = self.fid["O_17"]
+        kp, kd = pd(s.trunk_omega)
+        task(pin.getFrameJacobian(model, d, f, LWA)[3:],
+             a6_ref[3:] + kp * pin.log3(R_ref @ d.oMf[f].rotation.T)
+             + kd * (v6_ref[3:] - pin.getFrameVelocity(model, d, f, LWA).angular),
+             pin.getFrameAcceleration(model, d, f, LWA).angular, s.w_trunk)
+        kp, kd = pd(s.swing_omega)
+        if tg.swing is not None:
+            foot, pt, v6, Rr, a_ff, xr = tg.swing
+            fpt = self.fid[TOE_POINT_FRAME[foot]]
+            ftoe = self.fid[FOOT_SPECS[foot].toe_frame]
+            task(pin.getFrameJacobian(model, d, fpt, LWA)[:3],
+                 a_ff[:3] + kp * (pt - d.oMf[fpt].translation)
+                 + kd * (v6[:3] - pin.getFrameVelocity(model, d, fpt, LWA).linear),
+                 pin.getFrameClassicalAcceleration(model, d, fpt, LWA).linear, s.w_swing)
+            task(pin.getFrameJacobian(model, d, ftoe, LWA)[3:],
+                 a_ff[3:] + kp * pin.log3(Rr @ d.oMf[ftoe].rotation.T)
+                 + kd * (v6[3:] - pin.getFrameVelocity(model, d, ftoe, LWA).angular),
+                 pin.getFrameAcceleration(model, d, ftoe, LWA).angular, s.w_swing)
+            # the swing foot's main body at the same orientation: a flat foot (toe joint straight) lands flat.  It
+            # left the ground with its heel lifted (the double support's toe-off): the reference starts there and
+            # returns to flat over heel_return_time_s (a step back to flat would kick the stance foot: on real
+            # ground it rocked by 2-2.5 deg at every lift-off)
+            fmain = self.fid[FOOT_SPECS[foot].main_frame]
+            Rm, wm_ref, am_ff = Rr, v6[3:], a_ff[3:]
+            if self._lift_k != k:
+                # the heel lift the foot left the ground with (main body pitched about the toe body's y axis).  On
+                # welds the toe-off reaches heel_lift_rad; on real ground the loaded heel box holds it back (sim 1:
+                # 2.5 deg of 6.9), and a reference starting at the full lift kicked the stance foot at lift-off
+                Rrel = d.oMf[ftoe].rotation.T @ d.oMf[fmain].rotation
+                self._lift_k = k
+                self._lift0 = min(max(math.atan2(Rrel[0, 2], Rrel[0, 0]), 0.0), s.heel_lift_rad)
+            if xr < 1.0 and self._lift0 > 0.0:
+                lift0 = self._lift0
+                ang = lift0 * (1.0 - smoothstep(xr))
+                dang = -lift0 * 6.0 * xr * (1.0 - xr) / s.heel_return_time_s
+                ddang = -lift0 * 6.0 * (1.0 - 2.0 * xr) / s.heel_return_time_s ** 2
+                Rm = Rr @ rot_y(ang)
+                axis = Rr[:, 1]                       # the toe body's pitch axis, world
+                wm_ref = v6[3:] + dang * axis
+                am_ff = a_ff[3:] + ddang * axis
+            task(pin.getFrameJacobian(model, d, fmain, LWA)[3:],
+                 am_ff + kp * pin.log3(Rm @ d.oMf[fmain].rotation.T)
+                 + kd * (wm_ref - pin.getFrameVelocity(model, d, fmain, LWA).angular),
+                 pin.getFrameAcceleration(model, d, fmain, LWA).angular, s.w_swing)
+        elif tg.heel is not None:
+            foot, ang = tg.heel
+            ftoe, fmain = self.fid[FOOT_SPECS[foot].toe_frame], self.fid[FOOT_SPECS[foot].main_frame]
+            R_ref = d.oMf[ftoe].rotation @ rot_y(ang)
+            task(pin.getFrameJacobian(model, d, fmain, LWA)[3:],
+                 kp * pin.log3(R_ref @ d.oMf[fmain].rotation.T)
+                 - kd * pin.getFrameVelocity(model, d, fmain, LWA).angular,
+                 pin.getFrameAcceleration(model, d, fmain, LWA).angular, s.w_swing)
+        # posture (thesis joint angles toward the initial ones)
+        kp, kd = pd(s.posture_omega)
+        i = r[0]
+        A[i:] = self._Jpost
+        b[i:] = kp * (self.theta0 - self.hm.theta_from_q(q)) - kd * (self._Jpost @ v)
+        w[i:] = self._w_joint
+        splits = self._splits(rows, model, d)
+        ns = len(splits)
+        X = np.array([sp[2] for sp in splits]).reshape(ns, 6, 6)
+        h = d.nle.copy()
+        split = (np.array([sp[0] for sp in splits], dtype=np.int64), np.array([sp[1] for sp in splits], dtype=np.int64),
+                 X, np.array([sp[3] for sp in splits]).reshape(ns, 6))
+        out = qp_numpy(A, w, b, d.M, h, rows.J, rows.rhs_shift, rows.n_weld_rows, kinds, split, tables, unload)
+        return out + (rows.J, X, h, (d, None, 0.0, 0.0, None))
+
+    def _qp_compiled(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,
+                     unload: np.ndarray) -> tuple:
+        """:meth:`_qp_reference` in one compiled call (:func:`.compiled.balance_stage`): Pinocchio computes the
+        joint Jacobians and their time variation, M and h; the kernel the placements, frame motions, constraint
+        rows, task rows and the QP."""
+        s = self.settings
+        k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
+        model, d = self.model, self._kin_data
+        pin.computeJointJacobiansTimeVariation(model, d, q, v)
+        pin.crba(model, d, q)
+        pin.nonLinearEffects(model, d, q, v)
+        h = d.nle.copy()
+        st = self._stage
+        tgt = self._tgt
+        pack_hip(tgt, *tg.hip)
+        if tg.swing is not None:
+            foot, pt, v6, Rr, a_ff, xr = tg.swing
+            mode = 1
+            fi = st.swing_frames[foot]
+            pack_swing(tgt, pt, v6, Rr, a_ff, xr, s.heel_return_time_s, self._lift0 if self._lift_k == k else -1.0)
+        elif tg.heel is not None:
+            foot, ang = tg.heel
+            mode = 2
+            fi = st.heel_frames[foot]
+            tgt[T_HEEL_ANGLE] = ang
+        else:
+            mode, fi, foot = 0, st.no_frames, None
+        state = State(q, v, d.J, d.dJ, d.M, h)
+        G, g, C, lo, ne, cop, M, Tx, Jc, X, lift0, pos_err, ori_err = balance_stage(
+            state, st.tree.record, st.coords, st.work, st.contacts[phase], st.support.anchor(phase, obs.anchors),
+            (mode, fi, st.need[(mode, foot)], tgt), tables, (kinds, st.split_toe[phase]), unload)
+        if mode == 1:
+            self._lift_k, self._lift0 = k, lift0
+        return G, g, C, lo, ne, cop, M, Tx, Jc, X, h, (d, st, pos_err, ori_err, state)
+
+    def _finish(self, x: np.ndarray, M: np.ndarray, h: np.ndarray, Jc: np.ndarray, q: np.ndarray, v: np.ndarray,
+                kin: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(a, lam, tau, T_cmd) of a QP solution: tau = M a + h - Jc^T lam (base rows zero) and its thesis torques."""
+        d, st, pos_err, ori_err, state = kin
+        if st is not None:
+            a, lam, tau, T, self._log, self._thdd, over, self._inside = balance_finish(
+                x, M, Jc, state, st.work, st.tree.record, st.coords, st.actuators(self.act.limits), pos_err, ori_err,
+                st.bounded, self._exact_limits)
+            return a, lam, tau, T, over
+        nv, m = self.nv, Jc.shape[0]
+        a, lam = x[:nv], x[nv:nv + m]
+        tau = M @ a + h - Jc.T @ lam
+        tau[:6] = 0.0
+        self._log = None
+        self._inside = False      # (unknown: Actuators.saturate decides)
+        self._thdd = self._Jpost @ a
+        T = self.act.thesis_torques(q, v, a, tau, kin_data=d)
+        return a, lam, tau, T, bool(np.any(np.abs(T[self._exact]) > self._exact_limits))
+
+    def _task_rows(self, k: int, phase: Phase) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Work buffers (A (rows x nv), b (rows,), w (rows,)) for one call's tasks, every row written by the call:
+        hip 3 + trunk 3, the swing foot's 9 (single support) or the trailing heel's 3 (double support), posture
+        26.  Kept per row count (reused across calls: no array is allocated per task)."""
+        n = 6 + (9 if self.traj.phases[k].swing_foot is not None else 3 if phase.is_double_support else 0) + 26
+        buf = self._task_buffers.get(n)
+        if buf is None:
+            buf = self._task_buffers[n] = (np.empty((n, self.nv)), np.empty(n), np.empty(n))
+        return buf
+
+    # ------------------------------------------------------------------ contact constraints
+    def _splits(self, rows, model, d) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
+        """Per flat foot: (its weld's index, its toe lock's row in lam, X (6 x 6: a toe-frame wrench at the toe
+        frame's origin as a main-frame wrench at the main frame's origin), j_toe (6,: the toe joint's column of the
+        toe frame's LOCAL Jacobian))."""
+        out = []
+        welds, locks = rows.contacts.welds, list(rows.contacts.locks)
+        for i, frame in enumerate(welds):
+            foot = _FOOT_OF_MAIN.get(frame)
+            if foot is None or FOOT_SPECS[foot].toe_joint not in locks:
+                continue
+            k = locks.index(FOOT_SPECS[foot].toe_joint)
+            ftoe = self.fid[FOOT_SPECS[foot].toe_frame]
+            rel = d.oMf[self.fid[frame]].actInv(d.oMf[ftoe])
+            R, p = rel.rotation, rel.translation
+            X = np.zeros((6, 6))
+            X[:3, :3] = R
+            X[3:, 3:] = R
+            X[3:, :3] = pin.skew(p) @ R
+            jt = pin.getFrameJacobian(model, d, ftoe, pin.ReferenceFrame.LOCAL)[:, int(rows.lock_v[k])]
+            out.append((i, rows.n_weld_rows + k, X, jt))
+        return out
+
+    def _box_rows(self, x_lo: float, x_hi: float, zs: float, margin: float) -> np.ndarray:
+        """(11, 6) rows L with L w >= 0 for a wrench w = [fx fy fz nx ny nz] (at a frame origin, the sole plane at
+        z = zs) inside one sole box [x_lo, x_hi] x [-width/2, width/2]: fz >= 0, the friction pyramid, the torsion
+        bound, the CoP inside the box shrunk by ``margin``.  Moments about the sole-plane point (0, 0, zs):
+        n'x = nx + zs fy, n'y = ny - zs fx; CoP x = -n'y / fz, y = n'x / fz."""
+        key = (x_lo, x_hi, zs, margin)
+        rows = self._box_cache.get(key)
+        if rows is not None:
+            return rows
+        hw = self.sole.width / 2.0
+        mu, tor = self.mu, self.torsion
+        lo, hi, ylo, yhi = x_lo + margin, x_hi - margin, -hw + margin, hw - margin
+        rows = self._box_cache[key] = np.array([
+            [0, 0, 1, 0, 0, 0],               # fz >= 0
+            [1, 0, mu, 0, 0, 0],              # friction pyramid
+            [-1, 0, mu, 0, 0, 0],
+            [0, 1, mu, 0, 0, 0],
+            [0, -1, mu, 0, 0, 0],
+            [0, 0, tor, 0, 0, 1],             # |n_z| <= torsion fz
+            [0, 0, tor, 0, 0, -1],
+            [zs, 0, -lo, 0, -1, 0],           # -n'y - lo fz >= 0
+            [-zs, 0, hi, 0, 1, 0],            # n'y + hi fz >= 0
+            [0, zs, -ylo, 1, 0, 0],           # n'x - ylo fz >= 0
+            [0, -zs, yhi, -1, 0, 0],          # yhi fz - n'x >= 0
+        ], dtype=float)
+        rows.flags.writeable = False           # cached (the sole and the margins are fixed): read-only
+        return rows
+
+    def _solve(self, G, g, C, lo, ne, cop_rows) -> tuple[np.ndarray, int]:
+        """min 1/2 x^T G x - g^T x  s.t.  C[:ne] x = lo[:ne], C[ne:] x >= lo[ne:] (``cop_rows`` flags the CoP rows of
+        the inequalities) by DAQP (a dual active-set method for small dense QPs, exact to its tolerances); relaxed
+        (CoP rows dropped, then every inequality) when DAQP reports no optimum (an infeasible set of constraints: the
+        state is beyond what the soles can carry)."""
+        key = (ne, len(lo))
+        bounds = self._bounds.get(key)
+        if bounds is None:      # DAQP's row kinds and the upper bounds (none on the inequalities), per row counts
+            sense = np.zeros(len(lo), dtype=np.int32)
+            sense[:ne] = _DAQP_EQUALITY
+            bounds = self._bounds[key] = (sense, np.full(len(lo), _DAQP_INF))
+        sense_all, hi_all = bounds
+        hi_all[:ne] = lo[:ne]
+        for level, keep in ((0, None), (1, ~cop_rows), (2, np.zeros(len(cop_rows), bool))):
+            if keep is None:
+                A, lo_k, hi, sense = C, lo, hi_all, sense_all
+            else:
+                rows = np.concatenate([np.ones(ne, dtype=bool), keep])
+                A, lo_k, hi, sense = C[rows], lo[rows], hi_all[rows], sense_all[rows]
+            x, _, flag, _ = self._daqp(G, -g, A, hi, lo_k, sense)
+            if flag != _DAQP_OPTIMAL:
+                continue
+            if level == 1:
+                self.relaxed_cop += 1
+            elif level == 2:
+                self.relaxed_all += 1
+            return np.asarray(x, dtype=float), level
+        raise ControllerError("balance controller: the QP has no solution even without contact inequalities "
+                              "(dependent constraint rows?)")

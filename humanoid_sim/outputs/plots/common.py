@@ -1,0 +1,73 @@
+"""What every figure shares: file writing, the header with its legend, phase shading."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+
+from humanoid_sim.outputs.colours import PHASE_COLOURS, REFERENCE_COLOUR  # noqa: E402
+
+REFERENCE_STYLE = dict(color=REFERENCE_COLOUR, ls="--", lw=1.0)
+
+
+def _save(fig: Figure, path: Path, dpi: int = 120) -> Path:
+    fig.savefig(path, dpi=dpi)
+    return path
+
+
+HEADER_IN = 0.85
+"""Height of the band above the plots (inches): the title on the first line, the legends on the second."""
+
+
+def _header(fig: Figure, title: str, handles: list, phases: list[str] | None, left: float = 0.02) -> None:
+    """Title at the top left; below it, the data legend (left) and the phase-shading legend (right), both outside
+    the plotting area so that they cover neither the title nor a line."""
+    from matplotlib.patches import Patch
+
+    h_in = fig.get_figheight()
+    fig.suptitle(title, x=left, y=1 - 0.08 / h_in, ha="left", va="top", fontsize=11)
+    y = 1 - 0.42 / h_in
+    if handles:
+        fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(left, y), ncol=len(handles), fontsize=7,
+                   frameon=False, borderaxespad=0.0, handlelength=2.2)
+    if phases:
+        patches = [Patch(visible=False, label="phase shading:")]
+        patches += [Patch(color=PHASE_COLOURS[n], alpha=0.25, label=n) for n in phases]
+        fig.legend(handles=patches, loc="upper right", bbox_to_anchor=(0.995, y), ncol=len(patches), fontsize=7,
+                   frameon=False, borderaxespad=0.0, handlelength=1.5, columnspacing=1.0)
+
+
+def _phases_present(r: dict[str, np.ndarray]) -> list[str]:
+    names = {str(x) for x in np.asarray(r["phase_names"])[np.unique(r["phase"])]}
+    return [n for n in PHASE_COLOURS if n in names]
+
+
+def _handle(label: str, **style: Any) -> Line2D:
+    return Line2D([], [], label=label, **style)
+
+
+def _phase_runs(phase: np.ndarray) -> list[tuple[int, int]]:
+    """[first, last] step of each run of equal phase index."""
+    cuts = np.flatnonzero(np.diff(phase)) + 1
+    starts = np.concatenate([[0], cuts])
+    ends = np.concatenate([cuts - 1, [len(phase) - 1]])
+    return list(zip(starts.tolist(), ends.tolist()))
+
+
+def shade_phases(ax, t: np.ndarray, phase: np.ndarray, names: list[str], alpha: float = 0.12) -> None:
+    """Shade each phase of a run in its thesis colour (span: its first step to the next phase's first step, s)."""
+    h = float(np.median(np.diff(t))) if len(t) > 1 else 0.01
+    for a, b in _phase_runs(phase):
+        t1 = t[b + 1] if b + 1 < len(t) else t[b] + h
+        ax.axvspan(t[a], t1, color=PHASE_COLOURS.get(names[phase[a]], "#808080"), alpha=alpha, lw=0)
+
+
+def _shade(ax, r: dict[str, np.ndarray]) -> None:
+    shade_phases(ax, r["t"], r["phase"], [str(x) for x in r["phase_names"]])

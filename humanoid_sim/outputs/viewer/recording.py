@@ -1,0 +1,197 @@
+"""The offline recording: ``playback.html``, a self-contained meshcat animation of a run."""
+
+from __future__ import annotations
+
+import base64
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import meshcat
+import numpy as np
+import umsgpack
+from meshcat.animation import Animation
+from meshcat.servers.tree import SceneTree, find_node, walk
+
+from humanoid_sim.outputs.viewer.frames import (
+    DISPLAY_FPS,
+    FORCE_SCALE,
+    PHASE_HEX,
+    PlaybackFrames,
+    ViewerError,
+    build_frames,
+)
+from humanoid_sim.outputs.viewer.scene import setup_scene
+
+if TYPE_CHECKING:  # pragma: no cover
+    from humanoid_sim.references.chapter3 import ReferenceTrajectory
+    from humanoid_sim.robot.model import HumanoidModel
+
+
+class _RecordingWindow:
+    """A meshcat window without a server: keeps the scene tree as meshcat's ZMQ bridge does and renders
+    it to the same self-contained HTML as ``Visualizer.static_html()``."""
+
+    def __init__(self) -> None:
+        self.tree = SceneTree()
+
+    def send(self, command: Any) -> None:
+        data = command.lower()
+        path = [p for p in data["path"].split("/") if p]
+        node = find_node(self.tree, path)
+        packed = umsgpack.packb(data)
+        kind = data["type"]
+        if kind == "set_object":
+            node.object, node.properties = packed, []
+        elif kind == "set_transform":
+            node.transform = packed
+        elif kind == "set_property":
+            node.properties.append(packed)
+        elif kind == "set_animation":
+            node.animation = packed
+        else:
+            raise ViewerError(f"recording: unsupported meshcat command {kind!r}")
+
+    def commands(self) -> list[bytes]:
+        """Every command of the scene, animations last (an animation binds to the objects that exist when it
+        loads: one created later would not move)."""
+        return scene_commands(self.tree)
+
+    def get_scene(self, title: str = "MeshCat", overlay: str = "") -> str:
+        """The self-contained page.  The commands are decoded and applied one after the other, in order (meshcat's
+        ``static_html`` fetches each from a data URL, which applies them in whatever order the fetches finish)."""
+        js = (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text(encoding="utf-8")
+        cmds = ",\n".join(f'"{base64.b64encode(c).decode("ascii")}"' for c in self.commands())
+        return (f"<!DOCTYPE html>\n<html>\n<head><meta charset=utf-8><title>{title}</title></head>\n<body>\n"
+                f'<div id="meshcat-pane"></div>\n<script>\n{js}\n</script>\n<script>\n'
+                f'var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));\n'
+                f"for (const c of [\n{cmds}\n]) {{\n"
+                "  viewer.handle_command_bytearray(Uint8Array.from(atob(c), ch => ch.charCodeAt(0)));\n"
+                "}\n</script>\n"
+                f"{overlay}\n<style>body {{margin: 0;}} #meshcat-pane {{width: 100vw; height: 100vh; "
+                "overflow: hidden;}</style>\n</body>\n</html>\n")
+
+
+def scene_commands(tree: Any) -> list[bytes]:
+    """The packed commands of a meshcat scene tree (objects, properties, transforms), then its animations."""
+    out: list[bytes] = []
+    animations: list[bytes] = []
+    for node in walk(tree):
+        if node.object is not None:
+            out.append(node.object)
+        out.extend(node.properties)
+        if node.transform is not None:
+            out.append(node.transform)
+        if node.animation is not None:
+            animations.append(node.animation)
+    return out + animations
+
+
+def _overlay(fr: PlaybackFrames) -> str:
+    """A corner box showing the simulation time and phase of the frame on screen, read from the playing animation's
+    clock; and the URL fragment ``#t=SECONDS`` (simulation time), which pauses the playback at that time."""
+    colours = {n: f"#{PHASE_HEX.get(n, 0x808080):06x}" for n in set(fr.phase_names)}
+    return (
+        '<div id="hs-status" style="position:fixed;left:8px;bottom:8px;padding:4px 8px;'
+        'font:14px monospace;background:rgba(255,255,255,0.85);border-left:8px solid #888"></div>\n'
+        "<script>\n"
+        f"const HS = {{t0: {float(fr.t[0]) if len(fr) else 0.0!r}, fps: {_fps(fr)!r}, n: {len(fr)}, "
+        f"times: {json.dumps([round(float(x), 4) for x in fr.step_t])}, "
+        f"phases: {json.dumps([int(k) for k in fr.phase])}, names: {json.dumps(list(fr.phase_names))}, "
+        f"colours: {json.dumps(colours)}}};\n"
+        "function hsFrame() {  // the frame on screen, from meshcat's animation clock (clip time, s)\n"
+        "  const tau = viewer.animator ? viewer.animator.time : 0;\n"
+        "  return Math.min(HS.n - 1, Math.max(0, Math.round(tau * HS.fps)));\n"
+        "}\n"
+        "function hsUpdate() {\n"
+        "  const k = hsFrame(), ph = HS.phases[k], name = HS.names[ph];\n"
+        "  const el = document.getElementById('hs-status');\n"
+        "  el.textContent = 't = ' + HS.times[k].toFixed(2) + ' s   phase ' + (ph + 1) + '/' +\n"
+        "    HS.names.length + ' ' + name;\n"
+        "  el.style.borderLeftColor = HS.colours[name];\n"
+        "  requestAnimationFrame(hsUpdate);\n"
+        "}\n"
+        "requestAnimationFrame(hsUpdate);\n"
+        "function hsSeek() {  // #t=SECONDS: pause at that simulation time once the animation is loaded\n"
+        "  const m = /[#&]t=([0-9.eE+-]+)/.exec(location.hash);\n"
+        "  if (!m) return;\n"
+        "  if (!viewer.animator || !(viewer.animator.duration > 0)) { setTimeout(hsSeek, 20); return; }\n"
+        "  const tau = Math.max(0, Math.min(viewer.animator.duration, parseFloat(m[1]) - HS.t0));\n"
+        "  viewer.animator.pause();\n"
+        "  viewer.animator.seek(tau);\n"
+        "  viewer.animator.display_progress(tau);\n"
+        "}\n"
+        "hsSeek();\n"
+        "window.addEventListener('hashchange', hsSeek);\n"
+        "</script>")
+
+
+def _fps(fr: PlaybackFrames) -> float:
+    return float(1.0 / (fr.t[1] - fr.t[0])) if len(fr) > 1 else DISPLAY_FPS
+
+
+def _animation(vis: meshcat.Visualizer, fr: PlaybackFrames, fps: float) -> Animation:
+    anim = Animation(default_framerate=fps)
+    for i in range(len(fr)):
+        with anim.at_frame(vis, i) as frame:
+            for path, T in fr.transforms.items():
+                frame[path].set_transform(T[i])
+            for path, s in fr.scales.items():
+                frame[path].set_property("scale", "vector3", [float(x) for x in s[i]])
+            for path, v in fr.visible.items():
+                frame[path].set_property("visible", "boolean", bool(v[i]))
+    return anim
+
+
+def _load_inputs(results_npz: str | Path, hm: HumanoidModel | None) -> tuple[dict[str, np.ndarray], Any]:
+    from humanoid_sim.interfaces.log import load_results
+
+    path = Path(results_npz)
+    if not path.is_file():
+        raise ViewerError(f"results file not found: {path}")
+    r = load_results(path)
+    missing = {"t", "q", "phase", "phase_names", "foot_wrench", "cop", "in_contact", "hip_p", "hip_p_ref",
+               "hip_R_ref", "toe_R_p_ref", "toe_L_p_ref", "foot_R_R", "foot_L_R"} - set(r)
+    if missing:
+        raise ViewerError(f"{path}: missing signals {sorted(missing)}")
+    if len(r["t"]) == 0:
+        raise ViewerError(f"{path}: the log is empty")
+    if hm is None:
+        from humanoid_sim.robot.model import load_model
+
+        hm = load_model()
+    return r, hm
+
+
+def record(results_npz: str | Path, hm: HumanoidModel | None = None, traj: ReferenceTrajectory | None = None,
+           *, fps: float = DISPLAY_FPS, force_scale: float = FORCE_SCALE,
+           repetitions: int = 1) -> tuple[_RecordingWindow, PlaybackFrames]:
+    """The recorded scene of a run (every meshcat command, as the browser receives them) and its frames."""
+    r, hm = _load_inputs(results_npz, hm)
+    fr = build_frames(r, hm, traj, fps=fps, force_scale=force_scale)
+    window = _RecordingWindow()
+    vis = meshcat.Visualizer(window=window)
+    setup_scene(vis, r, hm, traj, fr)
+    vis.set_animation(_animation(vis, fr, fps), play=True, repetitions=repetitions)
+    return window, fr
+
+
+def write_playback(results_npz: str | Path, out_html: str | Path, hm: HumanoidModel | None = None,
+                   traj: ReferenceTrajectory | None = None, *, fps: float = DISPLAY_FPS,
+                   force_scale: float = FORCE_SCALE, repetitions: int = 1) -> Path:
+    """Write ``out_html``: a self-contained meshcat recording of the run that opens offline in a browser.
+
+    The animation (sampled at ``fps``) plays once on load, the camera following the robot; meshcat's "Animations"
+    panel replays and scrubs it, and ``playback.html#t=3.5`` opens it paused at t = 3.5 s.  A corner box shows the
+    simulation time and the phase.  Returns the path written.
+    """
+    from humanoid_sim.interfaces.log import atomic_write_text
+
+    window, fr = record(results_npz, hm, traj, fps=fps, force_scale=force_scale, repetitions=repetitions)
+    html = window.get_scene(title=f"humanoid_sim playback: {Path(results_npz).parent.name}", overlay=_overlay(fr))
+    out = Path(out_html)
+    atomic_write_text(out, html)
+    return out
+
+
+# ============================================================================================ live server

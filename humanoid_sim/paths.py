@@ -1,0 +1,45 @@
+"""Where the package's data lies: the robot description, the shipped scenarios and sweeps.
+
+The files are package data (``humanoid_sim/data/``), so a built wheel carries them. In the repository,
+``humanoid_sim/data/models``, ``params`` and ``sweeps`` point at the top-level ``models/``, ``scripts/params/`` and
+``scripts/sweeps/``, where a developer edits them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from humanoid_sim.errors import InputError
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+DATA_DIR = PACKAGE_DIR / "data"
+MODELS_DIR = DATA_DIR / "models"
+"""The robot's body table (``thesis_humanoid.yaml``) and its generated URDF."""
+SCENARIOS_DIR = DATA_DIR / "params"
+"""The shipped scenarios: the thesis's ``sim1``-``sim3`` and the feasible ``*_zmp`` walks."""
+SWEEPS_DIR = DATA_DIR / "sweeps"
+"""The shipped sweep files."""
+
+
+def scenario_names() -> list[str]:
+    """The names of the shipped scenarios (``sim1``, ``sim1_zmp``, ...), sorted."""
+    return sorted(p.stem for p in SCENARIOS_DIR.glob("*.yaml"))
+
+
+def scenario_path(scenario: str | Path) -> Path:
+    """The YAML file of ``scenario``: a path to a file, or the name of a shipped scenario (``"sim1_zmp"``).
+
+    Raises:
+        InputError: neither an existing file nor a shipped scenario's name.
+    """
+    path = Path(scenario)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        return path
+    shipped = SCENARIOS_DIR / f"{scenario}.yaml"
+    if shipped.is_file():
+        return shipped
+    raise InputError(f"scenario: {str(scenario)!r} is neither a YAML file nor a shipped scenario; expected a path or "
+                     f"one of {', '.join(scenario_names())}")
+
+
+__all__ = ["DATA_DIR", "MODELS_DIR", "PACKAGE_DIR", "SCENARIOS_DIR", "SWEEPS_DIR", "scenario_names", "scenario_path"]

@@ -1,0 +1,390 @@
+"""The feasible gait (``gait.hip_reference: zmp_preview``): chapter 3's footholds, foot paths and timing with a
+Body-17 CoM path planned by ZMP preview control, as a trajectory the loop, the controllers and the kernel query
+like :class:`humanoid_sim.references.chapter3.ReferenceTrajectory`.
+
+Schedule.  Phase 0 is a standing double support of ``lead_in_s`` (the DSP type that precedes the first single
+support in the cycle, e.g. LFFDSP before LFFSSP: the first stance foot held flat, the other by its toe body),
+during which the weight moves onto the first stance foot; phases 1.. are the thesis's, ``lead_in_s`` later.  Global
+time 0 is the start of the lead-in.
+
+Hip.  Position and velocity of Body 17's CoM come from the plan (:func:`plan_hip`) on a uniform grid, evaluated
+by cubic Hermite interpolation of (position, velocity) between grid points, at the time clamped to the phase's
+nominal window (as the thesis clamps its polynomials, D1).  The height is chapter 3's constant height.  The yaw is
+chapter 3's (C^(0,17) = Rz(theta_CS +- theta_h) in single support, theta_hor in double support), shifted; in the
+lead-in a cubic takes it from the robot's initial yaw to theta_CS of segment 0 with the thesis's start rate
+(chapter 3 steps it there at t = 0, 40.5 deg in simulation 1, errata D5).
+
+Feet.  The thesis's (shifted); in the lead-in both feet stay where they start.  Landings learned by
+:meth:`ZmpPreviewTrajectory.set_landing` move the feet as in chapter 3; the hip plan is not re-planned (landing
+errors are millimetres).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from humanoid_sim.references.chapter3 import PhaseInfo, PhaseTargets, ReferenceTrajectory, RefSample, TrajectoryError
+from humanoid_sim.references.chapter3.generator import DSP_TABLE, SSP_TABLE_SIZE, _rz
+from humanoid_sim.references.chapter3.polynomials import cubic_bvp, eval_cubic
+
+from .errors import GaitError
+
+GRID_HEADER = ("t_grid0", "T", "n")
+"""What :meth:`ZmpPreviewTrajectory.ssp_table` / ``dsp_table`` append to chapter 3's layouts: the hip grid's first
+time (global, s), its step (s) and point count, then per point (x, y, vx, vy) of Body 17's CoM (m, m/s).  A table
+longer than the chapter-3 layout tells the kernel to take the hip position from the grid."""
+DSP_TABLE_SIZE = len(DSP_TABLE)
+
+
+def hermite(t: float, t0: float, T: float, xy: np.ndarray, vxy: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                                        np.ndarray]:
+    """Cubic Hermite interpolation of a uniform grid (first time t0, step T, points xy (n, 2), rates vxy (n, 2)) at
+    time t (clamped to the grid): position, velocity, acceleration (2,) each."""
+    p, v, a = hermite_xy(t, t0, T, xy, vxy)
+    return np.array(p), np.array(v), np.array(a)
+
+
+def hermite_xy(t: float, t0: float, T: float, xy: np.ndarray, vxy: np.ndarray
+               ) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
+    """:func:`hermite` as (x, y) float pairs: scalar arithmetic, the controller's per-call path (a 2-vector numpy
+    operation costs ~0.5 us, and the three derivatives take ~30 of them).  The same operations in the same order:
+    the same numbers."""
+    n = len(xy)
+    u = (t - t0) / T
+    i = min(max(int(math.floor(u)), 0), n - 2)
+    s = min(max(u - i, 0.0), 1.0)
+    s2, s3 = s * s, s * s * s
+    h00, h10, h01, h11 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2
+    d00, d10, d01, d11 = 6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s
+    e00, e10, e01, e11 = 12 * s - 6, 6 * s - 4, -12 * s + 6, 6 * s - 2
+    TT = T * T
+    out = []
+    for c in (0, 1):
+        p0, p1 = float(xy[i, c]), float(xy[i + 1, c])
+        m0, m1 = T * float(vxy[i, c]), T * float(vxy[i + 1, c])
+        out.append((h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1,
+                    (d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1) / T,
+                    (e00 * p0 + e10 * m0 + e01 * p1 + e11 * m1) / TT))
+    (px, vx, ax), (py, vy, ay) = out
+    return (px, py), (vx, vy), (ax, ay)
+
+
+@dataclass(frozen=True)
+class HipPlan:
+    """Body-17 CoM plan on a uniform grid: times t (n,) from 0 (global, s), xy (n, 2) m, vxy (n, 2) m/s, and what
+    the planner reports (``info``: ZMP tracking, multibody error, timings)."""
+
+    t: np.ndarray
+    xy: np.ndarray
+    vxy: np.ndarray
+    info: dict
+
+    @property
+    def T(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+
+class ZmpPreviewTrajectory:
+    """Chapter 3's walk led by a standing double support, with a planned hip (see the module docstring).
+
+    ``inner``: the chapter-3 trajectory of the path; ``lead_in_s``: the standing double support, s;
+    ``initial_yaw``: Body 17's yaw in the initial configuration, rad.  :meth:`set_hip_plan` installs the plan; until
+    then the hip holds chapter 3's start point (used to sample the feet for planning)."""
+
+    dsp_on_schedule = True
+    """The phase selector ends this gait's double supports at their planned duration (not the 0.05 m rule)."""
+
+    def __init__(self, inner: ReferenceTrajectory, lead_in_s: float, initial_yaw: float) -> None:
+        if not isinstance(inner, ReferenceTrajectory):
+            raise GaitError(f"inner: expected a ReferenceTrajectory, got {type(inner).__name__}")
+        self.inner = inner
+        self.lead = float(lead_in_s)
+        self.params = inner.params
+        self.hip_z = inner.hip_z
+        first = inner.phases[0]
+        lead_name = "LFFDSP" if first.name == "LFFSSP" else "RFFDSP"
+        self.phases: list[PhaseInfo] = [PhaseInfo(0, lead_name, 0, False, None, None, 0.0, self.lead, self.lead)]
+        self.phases += [replace(ph, index=ph.index + 1, t_start=ph.t_start + self.lead, t_end=ph.t_end + self.lead)
+                        for ph in inner.phases]
+        self._t_starts = [ph.t_start for ph in self.phases]
+        self.duration = inner.duration + self.lead
+        g = inner.segment_geometry(0)
+        yaw_end = float(g["theta_cs"])
+        start = yaw_end + math.remainder(float(initial_yaw) - yaw_end, 2 * math.pi)
+        rate_end = float(g["T_dir"]) * float(self.params.Vhip[0]) / float(g["R"])
+        self._lead_yaw = cubic_bvp(self.lead, start, yaw_end, 0.0, rate_end)
+        s0 = inner.sample(0, 0.0)
+        self._feet0 = {"R": (s0.toe_R_p, s0.foot_R_R, s0.foot_R_yaw), "L": (s0.toe_L_p, s0.foot_L_R, s0.foot_L_yaw)}
+        self.plan: HipPlan | None = None
+
+    # ------------------------------------------------------------------------------------------------ plan
+    def set_hip_plan(self, plan: HipPlan) -> None:
+        """Install the Body-17 CoM plan; it must cover [0, duration] on a uniform grid."""
+        if plan.t[0] > 1e-9 or plan.t[-1] < self.duration - 1e-9:
+            raise GaitError(f"hip plan: covers {plan.t[0]:.3f} .. {plan.t[-1]:.3f} s, expected 0 .. "
+                            f"{self.duration:.3f} s")
+        self.plan = plan
+        self._hip_memo: tuple = (math.nan,)
+        self._xy = np.ascontiguousarray(plan.xy, dtype=float)
+        self._vxy = np.ascontiguousarray(plan.vxy, dtype=float)
+
+    def _hip(self, tg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Planned Body-17 CoM position, velocity, acceleration (3,) at global time tg (s)."""
+        if self.plan is None:
+            p = self.inner.sample(0, 0.0).hip_p
+            return p.copy(), np.zeros(3), np.zeros(3)
+        if tg != self._hip_memo[0]:   # a controller asks for the position and the acceleration at one time
+            p, v, a = hermite_xy(tg, float(self.plan.t[0]), self.plan.T, self._xy, self._vxy)
+            self._hip_memo = (tg, (p[0], p[1], self.hip_z), (v[0], v[1], 0.0), (a[0], a[1], 0.0))
+        _, p, v, a = self._hip_memo
+        return np.array(p), np.array(v), np.array(a)
+
+    def _clamp(self, k: int, t: float) -> float:
+        ph = self.phases[k]
+        return ph.t_start + min(max(float(t - ph.t_start), 0.0), ph.duration)
+
+    def _check(self, k: int) -> int:
+        if not isinstance(k, (int, np.integer)) or isinstance(k, bool) or not 0 <= k < len(self.phases):
+            raise TrajectoryError(f"phase: index must be an integer in [0, {len(self.phases) - 1}] (value: {k!r})")
+        return int(k)
+
+    # ------------------------------------------------------------------------------------------------ queries
+    @property
+    def n_phases(self) -> int:
+        return len(self.phases)
+
+    def segment_geometry(self, i: int) -> dict[str, Any]:
+        return self.inner.segment_geometry(i)
+
+    def phase_at(self, t: float) -> int:
+        k = bisect.bisect_right(self._t_starts, t) - 1
+        return min(max(k, 0), len(self.phases) - 1)
+
+    def sample_global(self, t: float, phase: int | None = None) -> RefSample:
+        k = self.phase_at(t) if phase is None else self._check(phase)
+        return self.sample(k, t - self.phases[k].t_start)
+
+    def phase_end(self, phase: int) -> RefSample:
+        k = self._check(phase)
+        return self.sample(k, self.phases[k].duration)
+
+    def sample(self, phase: int, t_phase: float) -> RefSample:
+        k = self._check(phase)
+        ph = self.phases[k]
+        t = min(max(float(t_phase), 0.0), ph.duration)
+        if k == 0:
+            out = RefSample()
+            out.phase, out.t_phase = 0, t
+            yaw, yawd, yawdd = eval_cubic(self._lead_yaw, t)
+            out.hip_R, out.hip_w, out.hip_alpha, out.hip_yaw = _rz(yaw), np.array((0, 0, yawd)), \
+                np.array((0, 0, yawdd)), yaw
+            zero = np.zeros(3)
+            for f, (p, R, y) in self._feet0.items():
+                out.set_foot(f, (p, zero, zero, R, zero, zero, y))
+        else:
+            out = self.inner.sample(k - 1, t)
+            out.phase = k
+        out.hip_p, out.hip_v, out.hip_a = self._hip(ph.t_start + t)
+        return out
+
+    def phase_targets(self, phase: int) -> PhaseTargets:
+        k = self._check(phase)
+        hip_end = self._hip(self.phases[k].t_end)[0]
+        if k == 0:
+            return PhaseTargets(0, hip_end, None, None, None, 0.0, self.lead)
+        return replace(self.inner.phase_targets(k - 1), phase=k, hip_p_end=hip_end)
+
+    def hip_reference(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Body-17 CoM (3,), [linear; angular] velocity (6,), orientation (3x3) at global t clamped to ``phase``."""
+        return self.hip_targets(phase, t)[:3]
+
+    def hip_acceleration(self, phase: int, t: float) -> np.ndarray:
+        """Body-17 CoM [linear; angular] acceleration (6,) at global t clamped to ``phase``: the planned hip's (the
+        cubic Hermite's second derivative) and the yaw's."""
+        return self.hip_targets(phase, t)[3]
+
+    def hip_targets(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`hip_reference` and :meth:`hip_acceleration` at one time from one evaluation: position (3,),
+        velocity (6,), orientation (3x3), acceleration (6,) (both queries are read from it)."""
+        k = self._check(phase)
+        tc = self._clamp(k, t)
+        p, v, a = self._hip(tc)
+        if k == 0:
+            yaw, yawd, yawdd = eval_cubic(self._lead_yaw, tc - self.phases[0].t_start)
+        else:
+            inner = self.inner
+            ph, sg, tci = inner._clamped(k - 1, t - self.lead)
+            yaw, yawd, yawdd = inner._hip_scalars(ph, sg, tci)[4:]
+        return (p, np.array((v[0], v[1], 0.0, 0.0, 0.0, yawd)), _rz(yaw),
+                np.array((a[0], a[1], 0.0, 0.0, 0.0, yawdd)))
+
+    def toe_velocity(self, phase: int, t: float, foot: str) -> np.ndarray:
+        """:meth:`toe_reference`'s velocity (6,) alone; the same numbers."""
+        k = self._check(phase)
+        if k == 0:
+            return np.zeros(6)
+        return self.inner.toe_velocity(k - 1, t - self.lead, foot)
+
+    def toe_reference(self, phase: int, t: float, foot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        k = self._check(phase)
+        if k == 0:
+            p, R, _ = self._feet0[foot]
+            return p, np.zeros(6), R
+        return self.inner.toe_reference(k - 1, t - self.lead, foot)
+
+    def positions(self, t: float, phase: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        k = self.phase_at(t) if phase is None else phase
+        hip = self._hip(self._clamp(k, t))[0]
+        if k == 0:
+            return hip, self._feet0["R"][0], self._feet0["L"][0]
+        _, r, left = self.inner.positions(t - self.lead, k - 1)
+        return hip, r, left
+
+    def set_landing(self, foot: str, phase: int, toe_point: np.ndarray, R_foot: np.ndarray) -> None:
+        k = self._check(phase)
+        if k == 0:
+            raise TrajectoryError("phase: 0 is the standing lead-in; no foot lands in it")
+        self.inner.set_landing(foot, k - 1, toe_point, R_foot)
+
+    # ------------------------------------------------------------------------------------------------ kernel
+    def _grid_part(self, k: int) -> np.ndarray:
+        """The hip grid points covering phase k's nominal window (one point beyond each end)."""
+        if self.plan is None:
+            raise GaitError("the hip plan is not set (set_hip_plan)")
+        ph = self.phases[k]
+        T, t0 = self.plan.T, float(self.plan.t[0])
+        i0 = max(int(math.floor((ph.t_start - t0) / T)) - 1, 0)
+        i1 = min(int(math.ceil((ph.t_end - t0) / T)) + 2, len(self.plan.t))
+        pts = np.concatenate((self._xy[i0:i1], self._vxy[i0:i1]), axis=1)
+        return np.concatenate(([t0 + i0 * T, T, float(i1 - i0)], pts.ravel()))
+
+    def ssp_table(self, phase: int) -> np.ndarray:
+        """Chapter 3's single-support table of the phase (times shifted) with the hip grid appended
+        (:data:`GRID_HEADER`)."""
+        k = self._check(phase)
+        if k == 0:
+            raise TrajectoryError("phase: 0 (the lead-in) is not a single support phase")
+        tab = self.inner.ssp_table(k - 1).copy()
+        tab[0] = self.phases[k].t_start
+        return np.concatenate((tab, self._grid_part(k)))
+
+    def dsp_table(self, phase: int) -> np.ndarray:
+        """Chapter 3's double-support table (times shifted; in the lead-in, its yaw cubic in place of e) with the
+        hip grid appended."""
+        k = self._check(phase)
+        if k == 0:
+            tab = np.zeros(DSP_TABLE_SIZE)
+            tab[0], tab[1], tab[2] = 0.0, self.lead, self.hip_z
+            tab[12:16] = self._lead_yaw
+        else:
+            tab = self.inner.dsp_table(k - 1).copy()
+            tab[0] = self.phases[k].t_start
+        return np.concatenate((tab, self._grid_part(k)))
+
+
+SSP_GRID_AT = SSP_TABLE_SIZE
+DSP_GRID_AT = DSP_TABLE_SIZE
+
+
+def plan_hip(hm: Any, traj: ZmpPreviewTrajectory, q0: np.ndarray, horizon_s: float = 1.6, passes: int = 2,
+             T: float = 0.01, transfer: str = "smoothstep") -> HipPlan:
+    """Plan Body 17's CoM for ``traj`` (whose feet and yaw are set) from rest at configuration q0.
+
+    1. ZMP reference (:mod:`.zmp_reference`): from the initial whole-body CoM, over the first stance sole in the
+       lead-in, then the sole centres of chapter 3's footholds, moving across in each double support;
+    2. cart-table preview control (:class:`.preview.CartTablePreview`, table height = the initial whole-body CoM
+       height) from rest;
+    3. ``passes`` multibody corrections (:func:`.multibody.correct_hip`) with the whole-body posture of
+       :class:`.posture.WalkPosture` (feet on the trajectory's, Body 17 at chapter 3's height and the
+       trajectory's yaw), which turn the whole-body CoM plan into a Body-17 CoM path."""
+    import time
+
+    from humanoid_sim.robot.sole import SoleGeometry
+
+    from .multibody import correct_hip, whole_body_com
+    from .posture import WalkPosture, thesis_free_toes
+    from .preview import CartTablePreview
+    from .zmp_reference import intervals_from_trajectory, sample
+
+    wall0 = time.perf_counter()
+    inner = traj.inner
+    com0 = whole_body_com(hm.model, np.asarray(q0, dtype=float)[None, :])[0]
+    sole = SoleGeometry.from_model(hm)
+    times, ref = sample(intervals_from_trajectory(inner, sole, lead_in_s=traj.lead, start_xy=com0[:2]), T,
+                        transfer)
+    times = times + traj.lead                      # global time: 0 = the start of the lead-in
+    n_need = int(math.ceil(traj.duration / T + 1e-9)) + 2   # the grid covers the end with one point to spare
+    if len(times) < n_need:
+        extra = n_need - len(times)
+        times = np.concatenate((times, times[-1] + T * np.arange(1, extra + 1)))
+        ref = np.concatenate((ref, np.repeat(ref[-1:], extra, axis=0)))
+    preview = CartTablePreview(T, float(com0[2]), horizon_s)
+    x0 = np.zeros((3, 2))
+    x0[0] = com0[:2]
+    plan = preview.run(ref, x0=x0)
+    samples = [traj.sample_global(float(t)) for t in times]
+    posture = WalkPosture(hm, np.array([s.toe_R_p for s in samples]), np.array([s.foot_R_R for s in samples]),
+                          np.array([s.toe_L_p for s in samples]), np.array([s.foot_L_R for s in samples]),
+                          np.array([s.hip_R for s in samples]), traj.hip_z, np.asarray(q0, dtype=float),
+                          free_toe=thesis_free_toes(inner, times - traj.lead), T=T)
+    try:
+        res = correct_hip(preview, hm, ref, plan, posture, passes=passes)
+    except GaitError as exc:
+        raise GaitError(f"{exc} (samples are {T} s apart from the start of the {traj.lead} s lead-in: chapter 3's "
+                        f"time is sample x {T} - {traj.lead} s; a lower hip, path.Phip z, gives the legs more "
+                        "reach)") from None
+    ssp = np.array([traj.phases[traj.phase_at(float(t))].is_ssp and t < traj.duration for t in times])
+    cart = np.linalg.norm(plan.zmp - ref, axis=1)
+    mb = np.linalg.norm(res.zmp_error, axis=1)
+    info = {"com_height_m": float(com0[2]), "horizon_s": float(horizon_s), "passes": int(passes), "T_s": float(T),
+            "cart_zmp_error_ssp_max_m": float(cart[ssp].max()) if ssp.any() else 0.0,
+            "multibody_zmp_error_ssp_rms_m": float(np.sqrt(np.mean(mb[ssp] ** 2))) if ssp.any() else 0.0,
+            "multibody_zmp_error_ssp_max_m": float(mb[ssp].max()) if ssp.any() else 0.0,
+            "plan_wall_time_s": time.perf_counter() - wall0}
+    return HipPlan(t=times, xy=res.hip_xy, vxy=res.hip_v, info=info)
+
+
+def initial_state(hm: Any, scenario: Any) -> np.ndarray:
+    """The walk's initial configuration: chapter 3's (:func:`humanoid_sim.references.initial.initial_configuration`), or
+    for
+    the zmp gait its ready stance (:func:`.stance.ready_stance`, ``gait.ready_margin_m`` inside the lead-in's
+    support polygon)."""
+    from humanoid_sim.references.initial import initial_configuration
+
+    q0 = initial_configuration(hm, scenario.path)
+    g = scenario.gait
+    if not g.is_zmp or g.ready_margin_m <= 0.0:
+        return q0
+    from humanoid_sim.robot.phases import Phase
+
+    from .stance import ready_stance
+
+    stance = Phase(ReferenceTrajectory(scenario.path).phases[0].name).support_foot
+    return ready_stance(hm, scenario.path, q0, stance, g.ready_margin_m)
+
+
+def make_trajectory(hm: Any, scenario: Any, q0: np.ndarray) -> ReferenceTrajectory | ZmpPreviewTrajectory:
+    """The scenario's reference: chapter 3's trajectory (``gait.hip_reference: thesis``), or the planned
+    :class:`ZmpPreviewTrajectory` (``zmp_preview``)."""
+    inner = ReferenceTrajectory(scenario.path)
+    g = scenario.gait
+    if not g.is_zmp:
+        return inner
+    from humanoid_sim.references.chapter3.geometry import yaw_of
+
+    R0 = _quat_rotation(q0[3:7])
+    traj = ZmpPreviewTrajectory(inner, g.lead_in_s, yaw_of(R0))
+    traj.set_hip_plan(plan_hip(hm, traj, q0, g.horizon_s, g.passes, g.sample_s, g.transfer))
+    return traj
+
+
+def _quat_rotation(xyzw: np.ndarray) -> np.ndarray:
+    import pinocchio as pin
+
+    x, y, z, w = (float(c) for c in xyzw)
+    return pin.Quaternion(w, x, y, z).toRotationMatrix()

@@ -1,0 +1,125 @@
+"""The ``balance:`` section of a scenario: settings of the balance controller (the zmp gait's QP controller).
+
+Every key is optional; an absent key takes the default below. Gains are given as the natural frequency omega of a
+critically damped PD (stiffness omega^2, damping 2 omega); weights are relative weights of the QP's cost terms.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+from humanoid_sim.errors import InputError
+from humanoid_sim.scenario.fields import ScenarioError
+
+
+@dataclass(frozen=True)
+class BalanceSettings:
+    """Gains, task weights and contact margins of the balance controller.
+
+    Attributes:
+        hip_omega: hip (Body-17 CoM) tracking gain, rad/s.
+        trunk_omega: trunk orientation tracking gain, rad/s.
+        swing_omega: swing-foot tracking gain, rad/s.
+        posture_omega: joint posture regularisation gain, rad/s.
+        w_hip: weight of the hip task (-).
+        w_trunk: weight of the trunk orientation task (-).
+        w_swing: weight of the swing-foot task (-).
+        w_posture: weight of the leg posture task (-).
+        w_upper: weight of the upper-body posture task (-).
+        w_acc: weight of the joint accelerations (regularisation, -).
+        w_force: weight of the contact wrenches (regularisation, -).
+        w_torque: weight of the joint torques (regularisation, -).
+        cop_margin_ssp_m: how far inside the sole edge the centre of pressure stays in single support, m.
+        cop_margin_dsp_m: the same in double support, m.
+        friction_safety: share of the scenario's friction coefficient the controller may use, in (0, 1].
+        ff_dt_s: time step of the finite difference that gives the references' feed-forward acceleration, s.
+        torque_margin: share of each actuator's saturation limit the controller may command, in (0, 1].
+        landing_search_mps: downward speed of a late swing foot looking for the ground, m/s.
+        landing_depth_m: how far below the ground the swing foot's reference may search, m.
+        heel_lift_rad: heel lift (foot pitch about the toe joint) of the trailing foot at toe-off, rad.
+        heel_lift_time_s: duration of the heel lift ramp, s.
+        heel_return_time_s: duration of the ramp that lays the swing foot flat again, s.
+        swing_ramp_s: duration of the swing task's weight ramp after lift-off, s.
+        w_unload: weight that unloads the foot about to lift off in double support (-).
+        time_shift: follow the plan on a clock delayed by the touchdowns' lateness (true) or on the nominal clock.
+        lazy_torque_limits: add the actuator-limit rows to the QP only when its optimum without them breaks a limit
+            (the same optimum, fewer rows).
+    """
+
+    hip_omega: float = 12.0
+    trunk_omega: float = 15.0
+    swing_omega: float = 25.0
+    posture_omega: float = 8.0
+    w_hip: float = 100.0
+    w_trunk: float = 30.0
+    w_swing: float = 100.0
+    w_posture: float = 0.05
+    w_upper: float = 1.0
+    w_acc: float = 1e-4
+    w_force: float = 1e-6
+    w_torque: float = 1e-5
+    cop_margin_ssp_m: float = 0.015
+    cop_margin_dsp_m: float = 0.010
+    friction_safety: float = 0.3
+    ff_dt_s: float = 1e-3
+    torque_margin: float = 0.98
+    landing_search_mps: float = 0.05
+    landing_depth_m: float = 0.004
+    heel_lift_rad: float = 0.12
+    heel_lift_time_s: float = 0.3
+    heel_return_time_s: float = 0.2
+    swing_ramp_s: float = 0.05
+    w_unload: float = 0.001
+    time_shift: bool = True
+    lazy_torque_limits: bool = True
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            x = getattr(self, f.name)
+            if f.name in ("time_shift", "lazy_torque_limits"):
+                if not isinstance(x, bool):
+                    raise InputError(f"BalanceSettings.{f.name} = {x!r}: expected true or false")
+                continue
+            ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            nonneg = f.name.startswith(("w_", "cop_")) or f.name in ("landing_depth_m", "heel_lift_rad")
+            lo_ok = x >= 0 if nonneg else x > 0
+            if not (ok and lo_ok) or (f.name in ("friction_safety", "torque_margin") and x > 1.0):
+                raise InputError(f"BalanceSettings.{f.name} = {x!r}: expected a finite number "
+                                 f"{'>= 0' if nonneg else '> 0'}"
+                                 f"{' and <= 1' if f.name in ('friction_safety', 'torque_margin') else ''}")
+
+
+def parse_balance(src: str, raw: object) -> BalanceSettings:
+    """The ``balance`` section of a scenario file as :class:`BalanceSettings`.
+
+    Args:
+        src: the file's name, for messages.
+        raw: the section as read from YAML (a mapping, or None for the defaults).
+
+    Raises:
+        ScenarioError: not a mapping, an unknown key (the closest valid name is suggested), or a value out of range.
+    """
+    import difflib
+
+    if raw is None:
+        return BalanceSettings()
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{src}: balance: expected a mapping of settings, got {type(raw).__name__}")
+    names = [f.name for f in fields(BalanceSettings)]
+    for k in raw:
+        if k not in names:
+            close = difflib.get_close_matches(str(k), names, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ScenarioError(f"{src}: balance.{k}: unknown setting{hint}; expected one of {', '.join(names)}")
+    values: dict[str, Any] = {k: (float(v) if isinstance(v, int) and not isinstance(v, bool) and k not in ("time_shift",
+                                                                                             "lazy_torque_limits")
+                  else v) for k, v in raw.items()}
+    try:
+        return BalanceSettings(**values)
+    except InputError as exc:
+        raise ScenarioError(f"{src}: balance.{str(exc).removeprefix('BalanceSettings.')}") from None
+
+
+__all__ = ["BalanceSettings", "parse_balance"]

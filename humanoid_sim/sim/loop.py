@@ -1,0 +1,225 @@
+"""The stepping loop: one loop for every engine and every controller (thesis chapter 6).
+
+    scenario -> references (chapter 3) -> controller -> engine -> log -> outputs
+
+Per step of h (the scenario's ``simulation.step_s``) the engine advances the state under the current phase's
+contacts, calling the controller whenever it needs torques (:mod:`humanoid_sim.engines`,
+:mod:`humanoid_sim.controllers`).  At each step boundary the loop
+
+- logs the step (the nominal references at t, the controller's clamped hip reference, the engine's record);
+- checks the state (:class:`humanoid_sim.interfaces.selector.PhaseSelector`: non-finite or diverging, a fall, a phase
+  lasting far beyond its nominal duration);
+- applies the phase selector of 6.1.1: SSP -> DSP on touchdown of the swing toe (the engine applies its touchdown
+  law, the trajectory learns the actual landing), DSP -> SSP on the hip-distance or overtime rule;
+- reports progress.
+
+A failure (a :class:`SimulationError`, an engine's contact or command error, a controller that raises or returns
+bad torques) or Ctrl-C ends the run with a one-line reason; the log up to that point is kept
+(:class:`SimResult`).
+
+Decisions where the thesis is silent:
+- Logged references (``hip_p_ref``, ``toe_*_ref``, ``hip_yaw_ref``) are the planned motion at time t on the
+  nominal schedule, the reference the user designed and the viewer draws; tracking errors are measured against it.
+  The thesis controller tracks the current phase's reference clamped to the phase's nominal window (6.1.1,
+  errata T-3), logged as ``hip_p_ctrl_ref``.  The two differ while a phase runs ahead of or behind its nominal
+  window: with the thesis's 0.05 m double-support rule a DSP ends one or two steps after touchdown, so the next
+  SSP's reference is held at its start for up to t_DSP.
+- P_i of the SSP switching rule is the actual swing toe point at the phase start (thesis 6.1.1.1 wording).
+- An engine that senses contact (optional hooks of :class:`humanoid_sim.interfaces.engine.Engine`) decides touchdown
+  with ``touchdown_signal(foot)``; the geometric rule's travel clause stays as the guard.  Its ``check(t)`` may end
+  the run after a step (a fall on real ground), and its ``run_info()`` adds to ``SimResult.extra``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import traceback as tb
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from humanoid_sim.controllers.thesis.command import CommandError
+from humanoid_sim.dynamics.contact import ContactError
+from humanoid_sim.errors import FallError
+from humanoid_sim.interfaces.controller import Command, Controller, ControllerError, Observation, as_command
+from humanoid_sim.interfaces.engine import Engine, StepRow
+from humanoid_sim.interfaces.log import SimLog
+from humanoid_sim.interfaces.selector import PhaseRecord, PhaseSelector, SimulationError
+from humanoid_sim.references.chapter3 import ReferenceTrajectory
+from humanoid_sim.robot.phases import Phase, SwitchThresholds, ssp_should_end
+from humanoid_sim.scenario.schema import Scenario
+from humanoid_sim.sim.status import RunStatus
+
+RUN_ERRORS: tuple[type[BaseException], ...] = (SimulationError, ControllerError, ContactError, CommandError,
+                                                 np.linalg.LinAlgError)
+"""Failures that end a run with a reason (the engines add their own, ``Engine.errors``)."""
+
+
+@dataclass
+class SimResult:
+    """Outcome of a run: the log, the phase history, and how it ended."""
+
+    log: SimLog
+    phases: list[PhaseRecord]
+    phases_planned: int
+    completed: bool
+    reason: str
+    sim_time: float
+    wall_time: float
+    steps: int
+    stage_evaluations: int
+    extra: dict = field(default_factory=dict)
+    phase_names: list[str] = field(default_factory=list)
+    """The name of each phase index the log's ``phase`` column holds: the trajectory's planned phases, except that a
+    held run (``run(hold=...)``, which never leaves index 0) names the phase it held.  Save and audit the log with
+    these (``log.save(path, result.phase_names)``)."""
+    status: RunStatus = RunStatus.FAILED
+    """How the run ended (:class:`RunStatus`); ``reason`` says it in words."""
+    error: BaseException | None = None
+    """The exception that ended the run, or None."""
+    traceback: str | None = None
+    """The formatted traceback of :attr:`error` (where a controller or the simulation failed), or None."""
+
+
+def thresholds_of(scenario: Scenario) -> SwitchThresholds:
+    """The phase selector's thresholds from the scenario's ``switch`` section."""
+    sw = scenario.switch
+    return SwitchThresholds(sw.toe_flat_height_m, sw.touchdown_tolerance_m, sw.min_horizontal_progress_fraction,
+                            sw.dsp_hip_distance_m, sw.dsp_overtime_fraction)
+
+
+class _Checked:
+    """The controller as the engine calls it: counted, its output checked (:func:`as_command`), its unexpected
+    exceptions turned into :class:`ControllerError` naming it."""
+
+    def __init__(self, controller: Controller, nv: int) -> None:
+        self.controller = controller
+        self.name = getattr(controller, "name", type(controller).__name__)
+        self.nv = nv
+        self.calls = 0
+
+    def __call__(self, obs: Observation) -> Command:
+        self.calls += 1
+        try:
+            out = self.controller(obs)
+        except RUN_ERRORS + (KeyboardInterrupt,):
+            raise
+        except Exception as exc:  # a user's controller: any failure ends the run with its name
+            raise ControllerError(f"controller {self.name!r} raised {type(exc).__name__} at t = {obs.t:.3f} s: "
+                                  f"{exc}") from exc
+        return as_command(out, self.nv, self.name)
+
+
+def _travelled(sel: PhaseSelector, toe: np.ndarray) -> bool:
+    """The guard of a sensed touchdown: the swing toe has covered more than the geometric rule's share of its
+    planned horizontal travel (6.1.1.1's second clause; its height clause is what the sensed contact replaces)."""
+    th = replace(sel.thresholds, touchdown_tolerance=math.inf)
+    return ssp_should_end(toe, sel.toe_start, sel.targets.swing_toe_end, th)
+
+
+def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scenario: Scenario, q0: np.ndarray,
+        t_end: float | None = None, progress: Callable[[float, int], None] | None = None,
+        hold: Phase | None = None) -> SimResult:
+    """Simulate ``scenario`` on ``engine`` driven by ``controller`` (already set up) from rest at ``q0`` until every
+    planned phase is done, ``t_end`` (s), the scenario's end time, or a failure.
+
+    ``hold``: stay in this contact phase for the whole run instead of walking the schedule (e.g. ``Phase.RFFDSP`` to
+    test a standing controller in double support); the run then ends at ``t_end``."""
+    h = scenario.simulation.step_s
+    n_phases = traj.n_phases
+    nominal_end = traj.phases[-1].t_end
+    t_stop = t_end if t_end is not None else (scenario.simulation.t_end_s or np.inf)
+    errors = RUN_ERRORS + tuple(getattr(engine, "errors", ()))
+    control = _Checked(controller, engine.model.nv)
+    t = 0.0
+    engine.start(q0, hold if hold is not None else Phase(traj.phases[0].name))
+    first_swing = traj.phases[0].swing_foot
+    engine.hip_com()
+    sel = PhaseSelector(traj, thresholds_of(scenario), scenario.simulation,
+                        None if first_swing is None else engine.toe_point(first_swing))
+    if hold is not None:
+        sel.hold_in(hold)
+    rows: list[StepRow] = []
+    completed, reason = False, ""
+    status, error, trace = RunStatus.FAILED, None, None
+    steps = 0
+    on_landing = getattr(controller, "landing", None)
+    check = getattr(engine, "check", None)                  # optional engine hooks (engines.base.Engine)
+    touch_signal = getattr(engine, "touchdown_signal", None)
+    wall0 = time.perf_counter()
+    try:
+        try:
+            while True:
+                if t >= t_stop - 1e-12:
+                    reason = f"stopped at t = {t:.3f} s (requested stop time)"
+                    status = RunStatus.STOPPED
+                    break
+                k, phase = sel.k, sel.phase
+                record = engine.step(t, h, k, control, sel)
+                rows.append(StepRow(t, k, phase, traj.sample_global(t), traj.hip_reference(k, t)[0], record))
+                t += h
+                steps += 1
+                if progress is not None:
+                    progress(t, k)
+                hip = engine.hip_com()
+                if check is not None:
+                    check(t)
+                sel.check_state(t, *engine.state_vectors(), hip)
+                swing = sel.phase.swing_foot if hold is not None else sel.info.swing_foot
+                toe = engine.toe_point(swing) if swing is not None else None
+                # an engine that senses touchdown decides it, the geometric rule's travel clause as the guard
+                signal = touch_signal(swing) if touch_signal is not None and swing is not None and hold is None \
+                    else None
+                if not (sel.should_switch(t, hip, toe) if signal is None else signal and _travelled(sel, toe)):
+                    continue
+                sel.end_phase(t)
+                if sel.is_last:
+                    completed, reason = True, f"all {n_phases} phases completed at t = {t:.3f} s"
+                    status = RunStatus.COMPLETED
+                    break
+                if swing is not None:  # touchdown: SSP -> DSP
+                    R_toe = engine.toe_rotation(swing)
+                    key = sel.record_touchdown(toe, R_toe)
+                    engine.touchdown(t, phase, swing, key)
+                    traj.set_landing(swing, k, toe, R_toe)
+                    if on_landing is not None:
+                        on_landing()
+                nxt = traj.phases[k + 1].swing_foot
+                engine.enter(phase.next)
+                sel.advance(t, None if nxt is None else engine.toe_point(nxt))
+        except errors as exc:
+            # the loop's own checks, the controller wrapper and falls word their reason whole; any other error
+            # (contact, command, linear algebra, an engine's own) gets its time and phase
+            own = isinstance(exc, FallError) or type(exc) in (SimulationError, ControllerError)
+            reason = str(exc) if own else f"{type(exc).__name__} at t = {t:.3f} s in {sel.where()}: {exc}"
+            status = RunStatus.FELL if isinstance(exc, FallError) else RunStatus.FAILED
+            error, trace = exc, "".join(tb.format_exception(exc))
+        except KeyboardInterrupt:
+            reason = f"interrupted by the user at t = {t:.3f} s"
+            status = RunStatus.INTERRUPTED
+        sel.close(t)
+        try:
+            log = engine.build_log(rows)
+        except KeyboardInterrupt:  # an interrupt during the post-loop pass: finish it, report the interruption
+            log = engine.build_log(rows)
+            if status is not RunStatus.INTERRUPTED:
+                completed, reason = False, f"interrupted by the user at t = {t:.3f} s"
+                status = RunStatus.INTERRUPTED
+    finally:
+        close = getattr(engine, "close", None)
+        if close is not None:
+            close()
+    extra = {"nominal_end": nominal_end, "engine": engine.name, "controller": control.name}
+    extra.update(getattr(controller, "run_info", lambda: {})())
+    extra.update(getattr(engine, "run_info", lambda: {})())
+    names = [p.name for p in traj.phases]
+    if hold is not None:
+        names[0] = hold.value
+    return SimResult(log=log, phases=sel.records, phases_planned=n_phases, completed=completed, reason=reason,
+                     sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps, stage_evaluations=control.calls,
+                     extra=extra, phase_names=names, status=status, error=error, traceback=trace)
+
+
+__all__ = ["RUN_ERRORS", "SimResult", "run", "thresholds_of"]

@@ -1,0 +1,370 @@
+"""The MuJoCo engine's compiled ground reads (humanoid_sim.engines.mujoco.compiled, .ground) against the NumPy reference
+path
+(humanoid_sim.engines.mujoco.contact, MujocoEngine._contact_record), to rounding (ROUNDING), at every control update of
+a real walk on
+MuJoCo's ground, and the engine's compiled and reference paths against each other (log, summary, falls)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import mujoco  # noqa: E402,F401
+import numba  # noqa: E402,F401
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from humanoid_sim.engines.mujoco import compiled as mjc  # noqa: E402
+from humanoid_sim.engines.mujoco.contact import _tables, foot_loads, sole_tilt  # noqa: E402
+from humanoid_sim.engines.mujoco.engine import MujocoEngine  # noqa: E402
+from humanoid_sim.engines.mujoco.ground import GroundMeter, ReferenceGroundMeter, end_loads, trunk_tilt  # noqa: E402
+from humanoid_sim.robot.model import HumanoidModel  # noqa: E402
+from humanoid_sim.robot.phases import Phase  # noqa: E402
+from humanoid_sim.scenario.schema import load_scenario  # noqa: E402
+from humanoid_sim.sim.simulate import Simulator  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _zmp_scenario(name: str = "sim3_fast_zmp"):
+    return load_scenario(ROOT / "scripts" / "params" / f"{name}.yaml")
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """The same shape and bits (NaN in the same places, +0.0 and -0.0 told apart)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+ROUNDING = 64 * np.finfo(float).eps
+"""How far the compiled reads may differ from the NumPy path, relative to the largest entry of the arrays compared.
+Both compute the same formulas; NumPy's vectorised products sum their terms in an order that depends on the NumPy
+build (SIMD width), the compiled loops in the written order.  A sum of n terms reordered differs by at most ~n eps
+of its largest term; the sums here have up to ~30 terms (64 eps).  A wrong formula, index or frame differs by
+orders of magnitude more (the smallest such error is a whole term, >= 1e-9 of the scale)."""
+
+
+def _close(a: np.ndarray, b: np.ndarray, scale: float = 0.0) -> bool:
+    """The same shape and NaNs, and every other entry within :data:`ROUNDING` of the arrays' largest magnitude (or of
+    ``scale``, when larger: the magnitude of the terms a small difference like a residual is made of)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.shape != b.shape or not np.array_equal(np.isnan(a), np.isnan(b)):
+        return False
+    ok = ~np.isnan(a)
+    if not ok.any():
+        return True
+    scale = max(float(np.max(np.abs(a[ok]))), float(np.max(np.abs(b[ok]))), scale, np.finfo(float).tiny)
+    return bool(np.all(np.abs(a[ok] - b[ok]) <= ROUNDING * scale))
+
+
+def _wrenches(eng: MujocoEngine, compiled: bool) -> tuple[np.ndarray, ...]:
+    """The record's (fw, cop, bf, bm) at the engine's current MuJoCo data, by the kernel or the NumPy path."""
+    d, out = eng.sim.data, (np.full((2, 6), 7.0), np.full((2, 3), 7.0), np.full((4, 3), 7.0), np.full((4, 3), 7.0))
+    if compiled:
+        con = d.contact
+        assert mjc.contact_wrenches(con.geom, con.pos, con.frame, con.dim, con.efc_address, d.efc_force,
+                                    _tables(eng.mm).pair_array, eng.mm.floor_geom, eng._wrench_bodies, d.xipos,
+                                    d.xmat, *out)
+    else:
+        eng._contact_record(*out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def walk_reads(hm: HumanoidModel) -> dict:
+    """The first 1.6 s of the 1.5x zmp walk on MuJoCo (lead-in, a double support, single supports, touchdowns:
+    ~800 control updates), comparing at every control update the compiled reads with the NumPy ones; two
+    compiled meters (a chunk of 7 updates, so that supports span chunks, and the default) and the reference meter
+    read the same states.  Returns what the comparisons found."""
+    sc = _zmp_scenario()
+    sim = Simulator(hm, sc, engine="mujoco")
+    eng = sim.engine
+    assert eng.compiled
+    meters = {"chunk7": GroundMeter(eng.mm, eng.settings.contact_force_N, chunk=7),
+              "default": GroundMeter(eng.mm, eng.settings.contact_force_N)}
+    ref = ReferenceGroundMeter(eng.mm, eng.settings.contact_force_N)
+    pdata = hm.model.createData()
+    found = {"updates": 0, "wrench_mismatch": [], "load_mismatch": [], "meter_mismatch": [], "tilt_gap": 0.0,
+             "state_mismatch": [],
+             "mid_run": [], "loaded": set(), "stance": set(), "supports": 0}
+    measure = eng._measure
+
+    def checked(t: float) -> bool:
+        d = eng.sim.data
+        found["updates"] += 1
+        if not all(_close(a, b) for a, b in zip(_wrenches(eng, True), _wrenches(eng, False))):
+            found["wrench_mismatch"].append(t)
+        loads, ref_loads = np.zeros(6), np.zeros(6)
+        end_loads(eng.mm, d, loads, True)
+        end_loads(eng.mm, d, ref_loads, False)
+        if not _close(loads, ref_loads):
+            found["load_mismatch"].append(t)
+        smap = eng.map
+        q, v = mjc.pin_state(d.qpos, d.qvel, smap.q_gather, smap.v_gather)
+        qpos = d.qpos.copy()
+        a = smap.a_from_qacc(q, v, d.qacc)
+        tau = smap.tau_from_ctrl(d.ctrl)
+        rnea = pin.rnea(hm.model, pdata, q, v, a)
+        if not (_close(q, smap.q_from_qpos(qpos)) and _close(v, smap.v_from_qvel(qpos, d.qvel))
+                and _close(mjc.pin_acceleration(q, v, d.qacc, smap.v_gather), a)
+                and _close(mjc.dynamics_residual(rnea, tau, q, d.qfrc_constraint, smap.v_gather),
+                           float(np.max(np.abs(rnea - tau - smap.tau_from_qfrc(q, d.qfrc_constraint)))),
+                           float(np.max(np.abs(rnea))))):
+            found["state_mismatch"].append(t)
+        stance = {None: -1, "R": 0, "L": 1}[eng.phase.support_foot]
+        r = ref.update(d, stance)
+        for m in meters.values():
+            if m.update(d, stance) & 3 != r & 3 or not _close(m.out[:7], ref.out[:7]) or m.out[10] != ref.out[10]:
+                found["meter_mismatch"].append(t)
+            found["tilt_gap"] = max(found["tilt_gap"], float(np.max(np.abs(m.out[7:10] - ref.out[7:10]))))
+        found["loaded"].add(r & 3)
+        found["stance"].add(stance)
+        if found["updates"] % 101 == 0:      # read the maxima mid-run too (a reduction of a partial chunk)
+            found["mid_run"].append([(m.slip_max, m.tilt_max, m.stance_tilt_max, m.penetration_max)
+                                     for m in meters.values()]
+                                    + [(ref.slip_max, ref.tilt_max, ref.stance_tilt_max, ref.penetration_max)])
+        return measure(t)
+
+    eng._measure = checked
+    res = sim.run(t_end=1.6)
+    assert res.reason.startswith("stopped at t = 1.600"), res.reason
+    found["final"] = [(m.slip_max, m.tilt_max, m.stance_tilt_max, m.penetration_max) for m in meters.values()] \
+        + [(ref.slip_max, ref.tilt_max, ref.stance_tilt_max, ref.penetration_max)]
+    found["supports"] = sum(len(m.max_slip) for f in "RL" for m in ref.slip[f])
+    return found
+
+
+def test_contact_wrenches_are_the_numpy_path_to_rounding(walk_reads: dict) -> None:
+    """compiled.contact_wrenches = foot_contacts + _body_wrenches (foot wrench, CoP, body force and moment), and
+    compiled.contact_loads = foot_loads, to rounding (:data:`ROUNDING`) at every control update of the walk."""
+    assert walk_reads["updates"] > 700
+    assert walk_reads["wrench_mismatch"] == [] and walk_reads["load_mismatch"] == []
+
+
+def test_state_maps_are_the_numpy_path_to_rounding(walk_reads: dict) -> None:
+    """compiled.pin_state = StateMap.q_from_qpos / v_from_qvel, pin_acceleration = a_from_qacc, dynamics_residual =
+    NumPy's max |rnea - tau - tau_from_qfrc|, to rounding (:data:`ROUNDING`) at every control update of the walk."""
+    assert walk_reads["state_mismatch"] == []
+
+
+def test_state_maps_at_random_states(hm: HumanoidModel) -> None:
+    """The compiled state maps against StateMap's at random base orientations (unit quaternions scaled by up to
+    1e-9, as MuJoCo's normalised ones are) and velocities, zero and negative-zero velocities included (their
+    signs of zero too); put_ctrl = ctrl_from_tau, and it refuses a non-finite torque without writing."""
+    from humanoid_sim.engines.mujoco import MujocoSim
+
+    smap = MujocoSim(hm).map
+    rng = np.random.default_rng(5)
+    for k in range(2000):
+        quat = rng.normal(size=4)
+        quat *= (1.0 + rng.uniform(-1e-9, 1e-9)) / np.linalg.norm(quat)
+        qpos, qvel, qacc, qfrc = (rng.normal(size=n) for n in (smap.nq, smap.nv, smap.nv, smap.nv))
+        qpos[3:7] = quat
+        if k % 3 == 0:
+            qvel[:] = -0.0 if k % 2 else 0.0
+        q, v = mjc.pin_state(qpos, qvel, smap.q_gather, smap.v_gather)
+        # equal to rounding (see ROUNDING)
+        assert _close(q, smap.q_from_qpos(qpos)) and _close(v, smap.v_from_qvel(qpos, qvel))
+        assert _close(mjc.pin_acceleration(q, v, qacc, smap.v_gather), smap.a_from_qacc(q, v, qacc))
+        rnea, tau = rng.normal(size=smap.nv), rng.normal(size=smap.nv)
+        assert _close(mjc.dynamics_residual(rnea, tau, q, qfrc, smap.v_gather),
+                     float(np.max(np.abs(rnea - tau - smap.tau_from_qfrc(q, qfrc)))))
+        ctrl = np.full(smap.nu, 7.0)
+        assert mjc.put_ctrl(tau, smap.ctrl_gather, ctrl) and _same(ctrl, smap.ctrl_from_tau(tau))
+    tau[10] = np.nan
+    ctrl = np.full(smap.nu, 7.0)
+    assert not mjc.put_ctrl(tau, smap.ctrl_gather, ctrl) and (ctrl == 7.0).all()
+    assert not mjc.all_finite(tau) and mjc.all_finite(ctrl)
+    rnea[4] = np.nan
+    assert math.isnan(mjc.dynamics_residual(rnea, tau, q, qfrc, smap.v_gather))
+
+
+def test_ground_meter_is_the_reference_meter(walk_reads: dict) -> None:
+    """GroundMeter (compiled reads, maxima reduced in batches) = ReferenceGroundMeter (NumPy at every update): the
+    loaded feet, loads and penetration at every update, and the slip / tilt / penetration maxima, read mid-run
+    and at the end, to the bit, whatever the batch size.  The fall tests' tilts are libm's: within 1e-15 rad of
+    NumPy's (both are within an ulp or two of the true angle; 1e-15 is ~10 ulp at the trunk's ~0.1 rad)."""
+    w = walk_reads
+    assert w["meter_mismatch"] == []
+    assert w["tilt_gap"] <= 1e-15, w["tilt_gap"]
+    for row in w["mid_run"] + [w["final"]]:
+        assert row[0] == row[1] == row[2], row
+    slip, tilt, stance_tilt, pen = w["final"][-1]
+    assert slip > 0 and tilt > 0 and stance_tilt > 0 and pen > 0       # every measure was exercised
+    # the walk had both feet alone and together on the ground, and a stance foot each side
+    assert {1, 2, 3} <= w["loaded"] and {0, 1} <= w["stance"]
+
+
+def test_slip_reduce_is_slip_meter() -> None:
+    """compiled.slip_reduce over buffers of random sizes = one SlipMeter per box fed row by row, to the bit: random
+    supports (single rows, gaps, supports running across buffers, a buffer without any) and corner travels."""
+    from humanoid_sim.engines.mujoco.contact import SlipMeter
+
+    rng = np.random.default_rng(3)
+    meters = [SlipMeter() for _ in range(4)]
+    last, anchor, slip = np.full(4, -2, dtype=np.intp), np.zeros((4, 4, 3)), np.zeros(4)
+    for size in rng.integers(1, 12, 60):
+        on = rng.random((size, 4)) < rng.choice([0.0, 0.5, 0.9])
+        corners = rng.normal(size=(size, 4, 4, 3)) * rng.choice([1e-6, 1e-3, 0.1])
+        for r in range(size):
+            for b in range(4):
+                meters[b].update("R", bool(on[r, b]), corners[r, b])
+        row, box = np.nonzero(on)
+        mjc.slip_reduce(corners[row, box], row, box, int(size), last, anchor, slip)
+        assert slip.tolist() == [m.max_slip["R"] for m in meters]
+    assert (slip > 0).all()
+
+
+def test_contact_wrenches_with_the_sole_as_geom1_and_fallback(hm: HumanoidModel) -> None:
+    """A sole-floor contact listed sole first acts on the foot with the opposite sign (the kernel = the NumPy path
+    to the bit, as contact.foot_contacts' own test flips them); contacts the kernel does not read (no constraint
+    rows, or mixed dims) make it return False and write nothing."""
+    sc = load_scenario(ROOT / "scripts" / "params" / "sim1.yaml")
+    eng = MujocoEngine(hm, sc)
+    eng.start(Simulator(hm, sc, engine="mujoco").q0, Phase.RFFDSP)
+    for _ in range(60):
+        eng.sim.hold(np.zeros(32))
+        eng.sim.advance(1)
+    d = eng.sim.data
+    assert d.ncon >= 4
+    con = d.contact
+    flip = np.arange(0, d.ncon, 2)
+    con.geom[flip] = con.geom[flip][:, ::-1].copy()
+    con.frame[flip] = -con.frame[flip]
+    for a, b in zip(_wrenches(eng, True), _wrenches(eng, False)):
+        assert _close(a, b)
+    bufs = [np.full((2, 6), 7.0), np.full((2, 3), 7.0), np.full((4, 3), 7.0), np.full((4, 3), 7.0)]
+    args = lambda adr, dim: (con.geom, con.pos, con.frame, dim, adr, d.efc_force,  # noqa: E731
+                             _tables(eng.mm).pair_array, eng.mm.floor_geom, eng._wrench_bodies, d.xipos, d.xmat)
+    adr = con.efc_address.copy()
+    adr[1] = -1
+    assert not mjc.contact_wrenches(*args(adr, con.dim), *bufs)
+    dim = con.dim.copy()
+    dim[1] = 1
+    assert not mjc.contact_wrenches(*args(con.efc_address, dim), *bufs)
+    assert all((b == 7.0).all() for b in bufs)
+
+
+@pytest.mark.slow
+def test_engine_paths_give_the_same_walk(hm: HumanoidModel) -> None:
+    """The engine's compiled path and its NumPy reference path: the same log and the same ground summary over 1.2 s
+    of the 1.5x zmp walk.  Bit for bit on the development machine's wheels (measured); the state map's last bit is
+    another pinocchio / NumPy build's (see :data:`ROUNDING`), and MuJoCo's contact solver carries such a difference
+    on, so each array is compared to 1e-9 of its own largest magnitude: a formula difference (a wrong sign, index or
+    threshold) shows at 1e-3 and more."""
+    sc = _zmp_scenario()
+    runs = {}
+    for flag in (None, False):
+        sim = Simulator(hm, sc, engine="mujoco")
+        sim.engine = MujocoEngine(hm, sc, sim.traj, compiled=flag)
+        runs[flag] = (sim.run(t_end=1.2), sim.engine)
+    (r1, e1), (r0, e0) = runs[None], runs[False]
+    assert e1.compiled and not e0.compiled
+    a1, a0 = r1.log.arrays(), r0.log.arrays()
+    assert sorted(a1) == sorted(a0)
+    def close(x, y, scale: float | None = None) -> bool:
+        x, y = np.asarray(x), np.asarray(y)
+        if x.dtype.kind not in "fc":
+            return np.array_equal(x, y)
+        if scale is None:
+            scale = float(np.nanmax(np.abs(y))) if np.isfinite(y).any() else 0.0
+        return x.shape == y.shape and bool(np.allclose(x, y, rtol=0, atol=1e-9 * max(scale, 1e-300), equal_nan=True))
+
+    # the dynamics residual is a difference of joint torques (|rnea - tau - J^T f|): judged on the torques' scale
+    scales = {"dynamics_residual": float(np.max(np.abs(a0["tau"])))}
+    assert [k for k in a1 if not close(a1[k], a0[k], scales.get(k))] == []
+    g1, g0 = r1.extra["ground"], r0.extra["ground"]
+    assert sorted(g1) == sorted(g0)
+    assert all(close(g1[k], g0[k]) if isinstance(g0[k], float) else g1[k] == g0[k] for k in g0)
+
+
+def test_pyramidal_cone_takes_the_reference_path(hm: HumanoidModel) -> None:
+    """The kernels read an elliptic cone's normal forces; with a pyramidal cone the engine reads the NumPy way."""
+    from humanoid_sim.engines.mujoco import MujocoSettings
+
+    sc = load_scenario(ROOT / "scripts" / "params" / "sim1.yaml")
+    eng = MujocoEngine(hm, sc, contact=replace(MujocoSettings.from_scenario(sc), cone="pyramidal"))
+    assert not eng.compiled and isinstance(eng.ground, ReferenceGroundMeter)
+    with pytest.raises(ValueError, match="elliptic"):
+        GroundMeter(eng.mm, 20.0)
+
+
+class _Limp:
+    """A controller that applies no torque: the robot collapses."""
+
+    name = "limp"
+
+    def setup(self, ctx) -> None:
+        self.nv = ctx.hm.model.nv
+
+    def __call__(self, obs):
+        return np.zeros(self.nv)
+
+
+def test_trunk_fall_is_the_same_on_both_paths(hm: HumanoidModel) -> None:
+    """A limp robot dropped onto both feet sags; with a 0.05 rad trunk limit its trunk tilts too far before its hip
+    sinks below the fall height.  Both paths find the fall at the same control update with the same message (the
+    compiled path's libm tilt is checked again with NumPy near the threshold)."""
+    from humanoid_sim.sim.loop import run
+
+    sc = load_scenario(ROOT / "scripts" / "params" / "sim1.yaml")
+    found = {}
+    for flag in (None, False):
+        sim = Simulator(hm, sc, engine="mujoco", controller=_Limp())
+        eng = MujocoEngine(hm, sc, sim.traj, compiled=flag, trunk_tilt_fall_rad=0.05)
+        r = run(eng, sim.controller, sim.traj, sc, sim.q0, t_end=2.0, hold=Phase.RFFDSP)
+        found[flag] = (r.reason, r.extra["ground"])
+    assert found[None] == found[False]
+    assert "lower trunk tilted" in found[None][0] and found[None][1]["fell"], found[None]
+
+
+@pytest.mark.parametrize("compiled", [None, False])
+def test_fall_thresholds(hm: HumanoidModel, compiled: bool | None) -> None:
+    """At a state of the sagging limp robot, the fall tests decide at their thresholds as NumPy's numbers say: the
+    trunk's tilt (trunk_tilt: a limit at its value is not a fall, one ulp below it is, also where libm's tilt of
+    the compiled path differs in the last bit) and the hip CoM height (a fall height at it is not a fall, one ulp
+    above it is)."""
+    sc = load_scenario(ROOT / "scripts" / "params" / "sim1.yaml")
+    sim = Simulator(hm, sc, engine="mujoco", controller=_Limp())
+    eng = MujocoEngine(hm, sc, sim.traj, compiled=compiled)
+    eng.start(sim.q0, Phase.RFFDSP)
+    for _ in range(150):                  # the limp robot sags: its trunk tilts
+        eng.sim.hold(np.zeros(32))
+        eng.sim.advance(1)
+    d = eng.sim.data
+    tilt, hip_z = trunk_tilt(eng.mm, d), float(d.xipos[eng.mm.base_body][2])
+    assert 1e-4 < tilt < math.pi / 4
+
+    def falls(fall_height: float, trunk_limit: float) -> bool:
+        """_measure at this state with these thresholds (the engine reads them when a run starts)."""
+        eng.sc = replace(sc, simulation=replace(sc.simulation, fall_height_m=fall_height))
+        eng.settings = replace(eng.settings, trunk_tilt_fall_rad=trunk_limit)
+        eng._reset_measures()
+        return eng._measure(0.15)
+
+    assert not falls(0.0, tilt)
+    assert falls(0.0, math.nextafter(tilt, 0.0)) and "lower trunk tilted" in eng.fall[1]
+    assert not falls(hip_z, math.pi / 4)
+    assert falls(math.nextafter(hip_z, 1.0), math.pi / 4) and f"hip CoM height {hip_z:.3f} m below" in eng.fall[1]
+    # the feet's tilts the edge test reads: NumPy's sole_tilt, or libm's within 1e-15 rad of it
+    for i, f in enumerate("RL"):
+        assert abs(eng.ground.out[7 + i] - sole_tilt(eng.mm, d, f)) <= 1e-15
+    assert foot_loads(eng.mm, d)["R"].normal == eng.ground.out[0] + eng.ground.out[1]
+
+
+def test_build_compiles_both_contact_layouts(hm: HumanoidModel) -> None:
+    """``build`` (walk.py and sweeps call it before a MuJoCo run when the cache is missing) leaves every entry point
+    compiled, the contact readers for both layouts MuJoCo's contact fields come in (strided views with two contacts
+    or more, C-contiguous with one or none): no walk compiles in the middle of its run."""
+    from numba import types
+
+    from humanoid_sim.sim.builds import build_mujoco_reads
+
+    build_mujoco_reads(hm, _zmp_scenario("sim3_zmp"))
+    assert mjc.cache_ready()
+    for name in mjc.CONTACT_ENTRY_POINTS:
+        layouts = {tuple(a.layout for a in sig if isinstance(a, types.Array) and a.dtype == types.int32)
+                   for sig in getattr(mjc, name).signatures}
+        assert ("C",) * 2 in {lay[:2] for lay in layouts} and ("A",) * 2 in {lay[:2] for lay in layouts}, layouts
