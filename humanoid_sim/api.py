@@ -5,7 +5,7 @@
     run = hs.run_walk("sim1_zmp", engine="mujoco")   # a shipped scenario, or the path of a YAML file
     print(run.status, run.summary["torque_peak_Nm"]["T3"])
     df = run.log.to_pandas()                         # one row per logged step, columns "T.T3 [N m]", ...
-    run.write("results/sim1_zmp_mujoco")              # results.npz, summary.json, figures, playback.html
+    run.write("results/sim1_zmp/mujoco")              # results.npz, summary.json, figures, playback.html
 
 ``walk.py`` (``humanoid-walk``) and the sweeps run their walks through `run_walk`.
 """
@@ -13,7 +13,9 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+import sys
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -21,7 +23,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from humanoid_sim.analysis.summary import contact_audit, feasibility, summarize
+from humanoid_sim.analysis.summary import contact_audit, feasibility, provenance, summarize
 from humanoid_sim.engines import ENGINE_NAMES
 from humanoid_sim.errors import InputError
 from humanoid_sim.interfaces.log import SIGNALS, atomic_write_text
@@ -165,12 +167,30 @@ class Run:
         """The log's signals as arrays (and `RunLog.to_pandas`)."""
         return RunLog(self.result.log.arrays(), list(self.result.phase_names), self.hm)
 
-    def write(self, out: str | Path, *, figures: bool = True, playback: bool = True) -> list[Path]:
+    def column_names(self) -> dict[str, np.ndarray]:
+        """The names of the columns of the logged arrays, as ``results.npz`` holds them: ``theta_names``
+        (:data:`THETA_NAMES`, of ``theta``, ``theta_dot``, ...), ``T_names`` (:data:`T_NAMES`, of ``T``, ``T_cmd``,
+        ``saturated``), ``q_names`` and ``v_names`` (Pinocchio's coordinates: the base's, then the joints by name;
+        ``v_names`` also label ``tau``)."""
+        hm = self.hm
+        return {"theta_names": np.array(THETA_NAMES), "T_names": np.array(T_NAMES),
+                "q_names": np.array([n for n, _ in _component_labels("q", (hm.model.nq,), hm)]),
+                "v_names": np.array([n for n, _ in _component_labels("v", (hm.model.nv,), hm)])}
+
+    def write(self, out: str | Path, *, figures: bool | str | Sequence[str] = True,
+              playback: bool = True) -> list[Path]:
         """Write the run's outputs into the folder ``out`` (created if missing).
+
+        ``results.npz`` holds the log, the column names (:meth:`column_names`) and the ``engine``; ``summary.json``
+        the summary, with a ``provenance`` section (:func:`humanoid_sim.analysis.summary.provenance`; added here
+        when the summary has none).  A run that ended before its first step has nothing to draw or play: it gets
+        neither figures nor playback.
 
         Args:
             out: the output folder.
-            figures: also draw the figures (PNG).
+            figures: the figures (PNG) to draw: True or ``"all"`` for every one
+                (:data:`humanoid_sim.outputs.plots.thesis.FIGURES`), ``"quick"`` for the few a user looks at first
+                (``QUICK_FIGURES``), False or ``"none"`` for none, or a list of figure names.
             playback: also write ``playback.html`` (a self-contained 3-D recording).
 
         Returns:
@@ -178,19 +198,46 @@ class Run:
         """
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
-        self.result.log.save(out / "results.npz", self.result.phase_names)
+        self.summary.setdefault("provenance", provenance("python API"))
+        self.result.log.save(out / "results.npz", self.result.phase_names,
+                             extra={**self.column_names(), "engine": np.array(self.engine)})
         atomic_write_text(out / "summary.json", json.dumps(self.summary, indent=2) + "\n")
         written = [out / "results.npz", out / "summary.json"]
-        if figures and self.audit is not None and len(self.result.log):
+        stems = _figure_stems(figures)
+        html: list[Path] = []
+
+        def play() -> None:
+            from humanoid_sim.outputs.viewer import write_playback
+
+            html.append(write_playback(out / "results.npz", out / "playback.html", hm=self.hm, traj=self.traj,
+                                       report=self.audit))
+
+        play_now = play if playback and len(self.result.log) else None
+        if stems and self.audit is not None and len(self.result.log):
             from humanoid_sim.outputs.plots.thesis import plot_all
 
             written += plot_all(out / "results.npz", out, traj=self.traj, report=self.audit,
-                                mu=self.scenario.contact.friction_coefficient, title=self.scenario.name, hm=self.hm)
-        if playback and len(self.result.log):
-            from humanoid_sim.outputs.viewer import write_playback
+                                mu=self.scenario.contact.friction_coefficient, title=self.scenario.name, hm=self.hm,
+                                stems=stems, engine=self.engine, meanwhile=play_now)  # playback while figures draw
+        elif play_now is not None:
+            play_now()
+        return written + html
 
-            written.append(write_playback(out / "results.npz", out / "playback.html", hm=self.hm, traj=self.traj))
-        return written
+
+def _figure_stems(figures: bool | str | Sequence[str]) -> tuple[str, ...]:
+    """The figure names of `Run.write`'s ``figures`` argument."""
+    from humanoid_sim.outputs.plots.thesis import FIGURE_SETS, FIGURES
+
+    if isinstance(figures, bool):
+        return FIGURES if figures else ()
+    if isinstance(figures, str):
+        if figures not in FIGURE_SETS:
+            raise InputError(f"figures: {figures!r} is not one of {', '.join(FIGURE_SETS)} or a list of figures")
+        return FIGURE_SETS[figures]
+    unknown = [f for f in figures if f not in FIGURES]
+    if unknown:
+        raise InputError(f"figures: unknown figures {unknown}; the figures are {', '.join(FIGURES)}")
+    return tuple(figures)
 
 
 def as_scenario(scenario: str | Path | Scenario) -> Scenario:
@@ -235,7 +282,7 @@ def finish(sim: Simulator, result: SimResult) -> Run:
 def run_walk(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, until: float | None = None,
              compiled: bool | None = None, controller: Controller | None = None,
              progress: Callable[[float, int], None] | None = None, out: str | Path | None = None,
-             figures: bool = False, playback: bool = False) -> Run:
+             figures: bool | str | Sequence[str] = False, playback: bool = False, verbose: bool = True) -> Run:
     """Simulate one walk and summarise it.
 
     Args:
@@ -249,23 +296,66 @@ def run_walk(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, u
             scenario's own.
         progress: called after every step with the time (s) and the phase index.
         out: also write the outputs into this folder (`Run.write`).
-        figures: with ``out``, draw the figures.
+        figures: with ``out``, the figures to draw (`Run.write`: True or ``"all"``, ``"quick"``, a list of names).
         playback: with ``out``, write ``playback.html``.
+        verbose: print a line to stderr before a wait of seconds (numba compiling the kernel when its cache is
+            missing, planning a ``zmp_preview`` gait) and the planning time after it.
 
     Returns:
         The `Run`. A walk that fails or falls returns normally: ``run.status`` says how it ended and
-        ``run.result.reason`` why; its log holds every step up to the failure.
+        ``run.result.reason`` why; its log holds every step up to the failure.  A walk stopped by Ctrl-C returns
+        too; with ``out`` it writes ``results.npz`` and ``summary.json`` only (no figures, no playback).
+        ``run.summary["provenance"]`` records the call.
 
     Raises:
         InputError: bad input (the message names the field, the value and what was expected).
     """
     if until is not None and not (isinstance(until, (int, float)) and until > 0):
         raise InputError(f"until: expected a positive time in s, got {until!r}")
-    sim = prepare(scenario, engine, compiled=compiled, controller=controller)
+    call = _call_text(scenario, engine, until=until, compiled=compiled, controller=controller, out=out,
+                      figures=figures, playback=playback)
+    if verbose:
+        sc = as_scenario(scenario)
+        if _will_compile(engine, compiled):
+            _say("compiling the simulation kernel (numba's cache is missing: the first run after an install or an edit "
+                 "of a compiled module; up to a minute, cached for later runs)")
+        if sc.gait.is_zmp:
+            _say("planning the zmp_preview gait (ZMP preview control and its multibody correction: a few seconds per "
+                 "10 s of walk)")
+        t0 = time.perf_counter()
+        sim = prepare(sc, engine, compiled=compiled, controller=controller)
+        if sc.gait.is_zmp:
+            _say(f"planned the gait and set up the walk in {time.perf_counter() - t0:.1f} s")
+    else:
+        sim = prepare(scenario, engine, compiled=compiled, controller=controller)
     run = finish(sim, sim.run(t_end=until, progress=progress))
+    run.summary["provenance"] = provenance(call)
     if out is not None:
-        run.write(out, figures=figures, playback=playback)
+        stopped = run.status is RunStatus.INTERRUPTED   # Ctrl-C: keep the log, skip the slow outputs
+        run.write(out, figures=False if stopped else figures, playback=playback and not stopped)
     return run
+
+
+def _say(message: str) -> None:
+    print(f"humanoid_sim: {message}", file=sys.stderr, flush=True)
+
+
+def _will_compile(engine: str, compiled: bool | None) -> bool:
+    """Whether this walk's first steps will wait for numba to compile the kernel (its disk cache is missing)."""
+    from humanoid_sim import jit
+
+    return engine in ("pinocchio", "mujoco") and compiled is not False and jit.AVAILABLE and not jit.cache_present()
+
+
+def _call_text(scenario: str | Path | Scenario, engine: str, **kwargs: Any) -> str:
+    """``"python API: run_walk(...)"``, with the arguments given other than their defaults."""
+    defaults = {"until": None, "compiled": None, "out": None, "figures": False, "playback": False}
+    what = f"Scenario({scenario.name!r})" if isinstance(scenario, Scenario) else repr(str(scenario))
+    args = [what, f"engine={engine!r}"] + [f"{k}={repr(str(v)) if isinstance(v, Path) else repr(v)}"
+                                           for k, v in kwargs.items() if k in defaults and v != defaults[k]]
+    if kwargs.get("controller") is not None:
+        args.append(f"controller={type(kwargs['controller']).__name__}(...)")
+    return f"python API: run_walk({', '.join(args)})"
 
 
 __all__ = ["Engine", "Run", "RunLog", "as_scenario", "finish", "prepare", "robot", "run_walk"]

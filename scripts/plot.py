@@ -1,11 +1,14 @@
 #!/usr/bin/env python
-"""Redraw the figures of a run: ``python scripts/plot.py results/sim1/results.npz [--out DIR] [--scenario YAML]``.
+"""Redraw the figures of a run:
+``python scripts/plot.py results/sim1/pinocchio/results.npz [--out DIR] [--scenario YAML] [--figures all|quick]``.
 
-Writes every figure ``walk.py`` draws (:data:`humanoid_sim.outputs.plots.thesis.FIGURES`, by
-:func:`humanoid_sim.outputs.plots.thesis.plot_all`,
-the same call) into ``--out`` (default: the folder of results.npz).  The reference-trajectory figures (thesis Figs.
-6.51-6.53) and the audit's friction coefficient come from the scenario: pass ``--scenario``, or leave it out and the
-scenario named in the run's summary.json is looked up in scripts/params/.
+Writes the figures ``walk.py`` draws (by default the thesis's full set,
+:data:`humanoid_sim.outputs.plots.thesis.FIGURES`; ``--figures quick`` the few of ``walk.py``'s default), by
+:func:`humanoid_sim.outputs.plots.thesis.plot_all`, the same call, into ``--out`` (default: the folder of
+results.npz).  The reference-trajectory figures (thesis Figs. 6.51-6.53) and the audit's friction coefficient come
+from the scenario: pass ``--scenario``, or leave it out and the scenario named in the run's summary.json is looked up
+in scripts/params/.  The engine, which words the phase timeline and the audit (welded feet or real contact), comes
+from results.npz or, for runs saved without it, from summary.json.
 Exit status 0 on success, 2 on bad input.
 """
 
@@ -17,6 +20,12 @@ import sys
 from pathlib import Path
 
 PARAMS_DIR = Path(__file__).resolve().parent / "params"
+
+
+def _summary(results: Path) -> dict:
+    """The run's summary.json beside results.npz ({} when missing)."""
+    summary = results.parent / "summary.json"
+    return json.loads(summary.read_text(encoding="utf-8")) if summary.is_file() else {}
 
 
 def _scenario_path(results: Path, given: Path | None) -> Path | None:
@@ -37,11 +46,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=None, help="output folder (default: next to results.npz)")
     p.add_argument("--scenario", type=Path, default=None,
                    help="scenario YAML for the reference-trajectory figures (default: from summary.json)")
+    p.add_argument("--figures", choices=("all", "quick"), default="all",
+                   help="all (the default: the thesis's full set) or quick (walk.py's default few)")
     args = p.parse_args(argv)
     if not args.results.is_file():
         print(f"plot.py: error: results file not found: {args.results}", file=sys.stderr)
         return 2
-    from humanoid_sim.outputs.plots.thesis import DEFAULT_FRICTION, PlotError, plot_all
+    from humanoid_sim.outputs.plots.thesis import DEFAULT_FRICTION, FIGURE_SETS, PlotError, plot_all
 
     traj, mu, title = None, DEFAULT_FRICTION, ""
     scenario = _scenario_path(args.results, args.scenario)
@@ -58,7 +69,8 @@ def main(argv: list[str] | None = None) -> int:
         mu, title = sc.contact.friction_coefficient, sc.name
     out = args.out if args.out is not None else args.results.parent
     try:
-        paths = plot_all(args.results, out, traj=traj, mu=mu, title=title)
+        paths = plot_all(args.results, out, traj=traj, mu=mu, title=title, stems=FIGURE_SETS[args.figures],
+                         engine=_summary(args.results).get("engine"))
     except PlotError as exc:
         print(f"plot.py: error: {args.results}: {exc}", file=sys.stderr)
         return 2

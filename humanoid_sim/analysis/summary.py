@@ -143,3 +143,51 @@ def feasibility(summary: dict[str, Any]) -> dict[str, Any]:
     if problems:
         return {"feasible": False, "feasibility_reason": "; ".join(problems)}
     return {"feasible": True, "feasibility_reason": "every ground reaction inside its sole and friction cone"}
+
+
+PROVENANCE_PACKAGES = ("pin", "mujoco", "numpy", "numba", "scipy")
+"""The distributions whose versions ``provenance`` records (``pin`` is Pinocchio's)."""
+
+
+def git_commit(folder: Any = None) -> str | None:
+    """The commit checked out where ``folder`` lies (default: the humanoid_sim package's folder), by
+    ``git rev-parse HEAD``; None when it is not a git checkout, git is missing, or git fails in any way."""
+    import subprocess
+
+    from humanoid_sim.paths import PACKAGE_DIR
+
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=folder or PACKAGE_DIR, capture_output=True, text=True,
+                             timeout=5, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    commit = out.stdout.strip()
+    return commit if out.returncode == 0 and len(commit) >= 40 else None
+
+
+def provenance(command: list[str] | str) -> dict[str, Any]:
+    """The ``provenance`` section of summary.json: what made the run.
+
+    Keys: ``version`` (humanoid_sim's), ``git_commit`` (:func:`git_commit`, or None), ``packages`` (the version of
+    each of :data:`PROVENANCE_PACKAGES`, None where not installed), ``date`` (ISO 8601, UTC, to the second) and
+    ``command`` (the command line as a list of words, or a string such as ``"python API: run_walk('sim1')"``).
+    """
+    import datetime
+    import sys
+    from importlib import metadata
+
+    package = sys.modules["humanoid_sim"]   # loaded with this module (a static import would reach the API layer)
+
+    def version(dist: str) -> str | None:
+        try:
+            return metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return None
+
+    return {
+        "version": package.__version__,
+        "git_commit": git_commit(),
+        "packages": {name: version(name) for name in PROVENANCE_PACKAGES},
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": list(command) if not isinstance(command, str) else command,
+    }

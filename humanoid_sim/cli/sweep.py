@@ -91,6 +91,10 @@ def _main(args: argparse.Namespace) -> int:
         walks = spec.expand()
     except SweepError as exc:
         return _fail_input(str(exc))
+    from humanoid_sim.sweep.checks import noop_axes
+
+    for msg in noop_axes(spec, walks):   # before any walk: an axis that changes no walk of some group
+        print(f"{PROG}: warning: {msg}", file=sys.stderr)
     out = args.out if args.out is not None else Path("results") / "sweeps" / args.sweep.stem
     if out.exists() and not out.is_dir():
         return _fail_input(f"--out: {out} exists and is not a folder")
@@ -251,7 +255,8 @@ def _plots(spec, rows: list[dict], out: Path) -> None:
                 title=f"{name}: actuator sizing over {sum(1 for r in rows if r['completed'])} completed walks "
                       f"(of {len(rows)})", labels=actuator_labels(),
                 group=sizing_group(spec.axes))
-    plot_feasibility(rows, spec.axes, out / "feasibility.png", title=f"{name}: completion and contact feasibility")
+    plot_feasibility(rows, spec.axes, out / "feasibility.png", title=f"{name}: completion and contact feasibility",
+                     base_doc=spec.base_doc)
 
 
 def _print_summary(rows: list[dict], n_walks: int, stats, out: Path) -> None:

@@ -1,14 +1,19 @@
 """``walk``: run a scenario, save results and plots, optionally play it in meshcat.
 
     python scripts/walk.py [SCENARIO] [--out DIR] [--engine pinocchio|thesis|mujoco] [--no-kernel] [--until SECONDS]
-                           [--no-plots] [--no-html] [--view]
+                           [--figures quick|all|none] [--no-plots] [--no-html] [--view]
 
-Exit status: 0 when the walk completes every planned phase, 1 when it fails (the reason is printed, the
-partial results are saved with completed = false) or is stopped by Ctrl-C or SIGTERM (which also stop the live
-meshcat server), 2 on bad input (nothing is written).  The first run after an install builds the compiled kernel's
-cache (:mod:`humanoid_sim.sim.builds`).  Outputs get the mode a plain ``open()`` gives; the figures and playback
-of an earlier run in the output folder are removed before this run writes its own, and the summary lists what it
-wrote.
+The outputs go to ``results/<scenario name>/<engine>/`` unless ``--out`` says otherwise.  ``--figures`` picks the
+figures: the few a user looks at first (``quick``, the default), the thesis's full set (``all``), or none
+(``none``, also ``--no-plots``).
+
+Exit status: 0 when the walk completes every planned phase or reaches its ``--until`` time, 1 when it fails or
+falls (the reason is printed, the partial results are saved with completed = false) or is stopped by Ctrl-C or
+SIGTERM (results.npz and summary.json are written at once, the figures and playback skipped; the live meshcat
+server stops too), 2 on bad input (nothing is written).  The first run after an install builds the compiled
+kernel's cache (:mod:`humanoid_sim.sim.builds`).  Outputs get the mode a plain ``open()`` gives; the figures and
+playback of an earlier run in the output folder are removed before this run writes its own, and the summary lists
+what it wrote.
 """
 
 from __future__ import annotations
@@ -33,7 +38,8 @@ def _parser() -> argparse.ArgumentParser:
                                 "(Akalin 2010 re-implemented on Pinocchio).")
     p.add_argument("scenario", nargs="?", type=Path, default=DEFAULT_SCENARIO,
                    help="scenario YAML (default: scripts/params/sim1.yaml, the thesis's Simulation 1)")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default: results/<scenario name>/)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder (default: results/<scenario name>/<engine>/)")
     p.add_argument("--engine", choices=ENGINE_NAMES, default="pinocchio",
                    help="dynamics engine: the fast Pinocchio path (welded feet), "
                         "the thesis's NumPy formulas (slow), or "
@@ -44,7 +50,10 @@ def _parser() -> argparse.ArgumentParser:
                         "its compiled twin, e.g. humanoid_sim/controllers/thesis/compiled.py)")
     p.add_argument("--until", type=float, default=None, metavar="SECONDS",
                    help="stop the simulation at this time (s)")
-    p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
+    p.add_argument("--figures", choices=("quick", "all", "none"), default=None,
+                   help="PNG figures to draw: quick (the default: phase timeline, right-leg torques, ground "
+                        "reactions, contact audit; about a second), all (the thesis's full set of 27), or none")
+    p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures (= --figures none)")
     p.add_argument("--no-html", action="store_true", help="do not write playback.html")
     p.add_argument("--view", action="store_true", help="play the run live in a meshcat server on 127.0.0.1: prints "
                    "the URL, waits for a browser, plays there; Ctrl-C stops the server")
@@ -81,6 +90,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None) -> int:
     args = _parser().parse_args(argv)
+    args.command = list(sys.argv) if argv is None else ["walk.py", *argv]
+    if args.no_plots and args.figures not in (None, "none"):
+        return _fail_input(f"--no-plots contradicts --figures {args.figures}")
+    args.figures = "none" if args.no_plots else (args.figures or "quick")
     if args.until is not None and not (args.until > 0):
         return _fail_input(f"--until: expected a positive time in s, got {args.until}")
     # Validate everything before any output is written.
@@ -90,7 +103,7 @@ def _main(argv: list[str] | None) -> int:
         scenario = load_scenario(args.scenario)
     except ScenarioError as exc:
         return _fail_input(str(exc))
-    out = args.out if args.out is not None else Path("results") / scenario.name
+    out = args.out if args.out is not None else default_out(scenario.name, args.engine)
     if out.exists() and not out.is_dir():
         return _fail_input(f"--out: {out} exists and is not a folder")
     try:
@@ -99,6 +112,12 @@ def _main(argv: list[str] | None) -> int:
         what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
         print(f"walk.py: {what}; files already written are complete (atomic writes)", file=sys.stderr)
         return 1
+
+
+def default_out(scenario_name: str, engine: str) -> Path:
+    """The output folder of a walk without ``--out``: ``results/<scenario name>/<engine>/``, so that one scenario
+    walked on two engines keeps both."""
+    return Path("results") / scenario_name / engine
 
 
 def _build_kernel(args: argparse.Namespace, scenario) -> KernelBuild | None:
@@ -154,6 +173,8 @@ def _wait_kernel(running: KernelBuild, quiet: bool) -> None:
 def _run(args: argparse.Namespace, scenario, out: Path) -> int:
     """Simulate a validated scenario and write its outputs into ``out``; the exit status."""
     from humanoid_sim import api
+    from humanoid_sim.analysis.summary import provenance
+    from humanoid_sim.sim.status import RunStatus
 
     running = _build_kernel(args, scenario)
     try:
@@ -172,17 +193,22 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
                 print("walk.py: compiling the MuJoCo engine's ground reads (first run after an install: ~5 s, "
                       "cached for later runs)", file=sys.stderr)
             build_mujoco_reads(hm, scenario)
+    import time
+
     from humanoid_sim.references.zmp import GaitError
 
     if scenario.gait.is_zmp and not args.quiet:
         print("walk.py: planning the zmp_preview gait (ZMP preview control and its multibody correction: a few "
-              "seconds per 10 s of walk)", file=sys.stderr)
+              "seconds per 10 s of walk)", file=sys.stderr, flush=True)
+    t0 = time.perf_counter()
     try:
         sim = api.prepare(scenario, args.engine, compiled=False if args.no_kernel else None)
     except GaitError as exc:   # the planner cannot make this path's zmp_preview gait
         return _fail_input(f"{scenario.source}: gait.hip_reference: zmp_preview cannot plan this walk: {exc}")
     except InputError as exc:
         return _fail_input(f"{scenario.source}: {exc}")
+    if scenario.gait.is_zmp and not args.quiet:
+        print(f"walk.py: planned the gait and set up the walk in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     t_nominal = sim.traj.phases[-1].t_end
     bar = None
     progress = None
@@ -212,18 +238,27 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
             bar.refresh()
         bar.close()
     run = api.finish(sim, result)
+    run.summary["provenance"] = provenance(args.command)
+    interrupted = result.status is RunStatus.INTERRUPTED   # Ctrl-C: save the log now, skip the slow outputs
     stale = _remove_stale_outputs(out)
-    written = run.write(out, figures=not args.no_plots, playback=not args.no_html)
+    written = run.write(out, figures="none" if interrupted else args.figures,
+                        playback=not (args.no_html or interrupted))
     figures = [p for p in written if p.suffix == ".png"]
     html = next((p for p in written if p.suffix == ".html"), None)
     _print_summary(run.summary, out)
-    _print_outputs(args, out, figures, html, stale, len(result.log))
-    if args.view and len(result.log):
+    _print_outputs(args, out, figures, html, stale, len(result.log), interrupted)
+    if args.view and len(result.log) and not interrupted:
         from humanoid_sim.outputs.viewer import play_live
 
         play_live(out / "results.npz", hm=hm, traj=sim.traj)
-    if not result.status.reached_end:
-        print(f"walk.py: run failed: {result.reason}", file=sys.stderr)
+    status = result.status
+    if status is RunStatus.INTERRUPTED:
+        print(f"walk.py: {result.reason}; results.npz and summary.json written, figures and playback skipped "
+              f"(draw them with: python scripts/plot.py {out / 'results.npz'})", file=sys.stderr)
+        return 1
+    if not status.reached_end:
+        print(f"walk.py: {'the robot fell' if status is RunStatus.FELL else 'run failed'}: {result.reason}",
+              file=sys.stderr)
         if _raised_elsewhere(result.error):
             print(result.traceback.rstrip(), file=sys.stderr)
         return 1
@@ -261,15 +296,19 @@ def _remove_stale_outputs(out: Path) -> list[str]:
 
 
 def _print_outputs(args: argparse.Namespace, out: Path, figures: list[Path], html: Path | None, stale: list[str],
-                   steps: int) -> None:
+                   steps: int, interrupted: bool = False) -> None:
     written = {p.name for p in figures} | ({html.name} if html is not None else set())
     parts = ["results.npz", "summary.json"]
-    parts.append(f"{len(figures)} figures (*.png)" if figures else
-                 "no figures (" + ("--no-plots" if args.no_plots else "nothing to plot" if not steps else
-                                   "the contact audit failed") + ")")
+    if figures:
+        parts.append(f"{len(figures)} figures (*.png" + (", --figures all for the full set" if args.figures == "quick"
+                                                         else "") + ")")
+    else:
+        parts.append("no figures (" + ("--no-plots" if args.no_plots else "--figures none" if args.figures == "none"
+                                       else "the run ended before its first step: nothing to plot" if not steps
+                                       else "interrupted" if interrupted else "the contact audit failed") + ")")
     parts.append("playback.html" if html is not None else
                  "no playback.html (" + ("--no-html" if args.no_html else "nothing to play" if not steps else
-                                         "meshcat missing") + ")")
+                                         "interrupted" if interrupted else "meshcat missing") + ")")
     print(f"  outputs in {out}/: " + ", ".join(parts))
     gone = sorted(set(stale) - written)
     if gone:
@@ -281,12 +320,30 @@ FEASIBLE_WALK = "python scripts/walk.py scripts/params/sim1_zmp.yaml --engine mu
 """The command the console points to when a walk's contacts are infeasible."""
 
 
+def status_line(s: dict) -> str:
+    """The console's first line about a run: what ran, on which engine, and how it ended (completed, stopped at the
+    requested time, interrupted, fell, failed)."""
+    what = f"{s['scenario']} on {s['engine']} ({'real contact' if 'fell' in s else 'welded feet'})"
+    status = s["status"]
+    if status == "completed":
+        return f"{what}: completed -- {s['reason']}"
+    if status == "stopped":
+        return f"{what}: stopped at t = {s['sim_time_s']:.3f} s (requested)"
+    if status == "interrupted":
+        return f"{what}: INTERRUPTED (stopped on request: Ctrl-C or SIGTERM) -- {s['reason']}"
+    return f"{what}: {status.upper()} -- {s['reason']}"
+
+
+def _mm(x: float | None) -> str:
+    return "n/a" if x is None else f"{1000 * x:.1f} mm"
+
+
 def _print_summary(s: dict, out: Path) -> None:
-    if s.get("feasible") is False:
+    real = "fell" in s   # an engine with real, unilateral contact (MuJoCo) reports falls, slip, tilt, penetration
+    if s.get("feasible") is False and not real:
         print(f"INFEASIBLE CONTACTS: {s['feasibility_reason']}. Real ground could not carry this walk, so its torques "
               f"are not a design load. The feasible walk: {FEASIBLE_WALK}")
-    status = s["status"] if s["status"] in ("completed", "stopped") else s["status"].upper()
-    print(f"{s['scenario']}: {status} -- {s['reason']}")
+    print(status_line(s))
     print(f"  phases {s['phases_completed']}/{s['phases_planned']}, sim {s['sim_time_s']:.2f} s in "
           f"{s['wall_time_s']:.2f} s wall (real-time factor {s['real_time_factor']:.1f}"
           + (f", {s['compiled_stages']} of {s['compiled_stages'] + s['reference_stages']} stages compiled)"
@@ -297,15 +354,22 @@ def _print_summary(s: dict, out: Path) -> None:
         print(f"  hip CoM error rms {s['hip_com_error_rms_m'] * 1000:.1f} mm, max "
               f"{s['hip_com_error_max_m'] * 1000:.1f} mm; hip yaw error rms {s['hip_yaw_error_rms_rad']:.3f} rad")
         print(f"  touchdown error max {td * 1000:.1f} mm" if td is not None else "  no touchdown")
-        print(f"  peak torque {peak[0]} {peak[1]:.1f} N m; saturated {100 * s['saturated_fraction']:.1f} % of "
-              f"steps; weld drift max {s['constraint_drift_max_m']:.2e} m")
+        print(f"  peak torque {peak[0]} {peak[1]:.1f} N m; saturated {100 * s['saturated_fraction']:.1f} % of steps"
+              + ("" if real else f"; weld drift max {s['constraint_drift_max_m']:.2e} m"))
+    if real:
+        tilt = s["stance_tilt_max_rad"]
+        print("  on the ground: " + (f"FELL at t = {s['fall_time_s']:.3f} s" if s["fell"] else "stood")
+              + f"; foot slip max {_mm(s['foot_slip_max_m'])}; stance foot tilt max "
+              + ("n/a" if tilt is None else f"{tilt:.3f} rad") + f"; penetration max {_mm(s['penetration_max_m'])}")
     c = s.get("contact", {})
     if "error" in c:
         print(f"  contact audit failed: {c['error']}")
     elif c.get("steps"):
         pct = lambda x: "n/a" if x is None else f"{100 * x:.0f} %"  # noqa: E731
         fmin = ", ".join(f"{k} {v:.0f} N" for k, v in c["min_normal_force_N"].items() if v is not None)
-        print(f"  contact feasibility (mu {c['friction_coefficient']:g}): min normal force {fmin}; CoP outside "
+        head = (f"contact forces of real unilateral contact ({s['engine']})" if real else
+                "contact feasibility of the welded feet")
+        print(f"  {head} (mu {c['friction_coefficient']:g}): min normal force {fmin}; CoP outside "
               f"the sole R {pct(c['cop_outside_fraction']['R'])} / L {pct(c['cop_outside_fraction']['L'])}; "
               f"friction exceeded R {pct(c['friction_exceeded_fraction']['R'])} / "
               f"L {pct(c['friction_exceeded_fraction']['L'])}; ZMP outside {pct(c['zmp_outside_fraction'])}")

@@ -3,7 +3,8 @@
 A foot in contact is welded (thesis chapter 4): in the floating-base model a flat foot is a 6-D weld of its main
 body plus a lock of its toe joint; in double support the trailing foot's toe body is welded too (7 / 13 constraint
 rows, 25 / 19 free DOF, the thesis's counts).  The state (q, v) advances by fixed-step Runge-Kutta (ode3 =
-Bogacki-Shampine, as Simulink's) with the controller evaluated at every stage; the accelerations are the KKT
+Bogacki-Shampine, as Simulink's) with the controller evaluated at every stage (or, with a control period set,
+once per period with its torques held: :attr:`WeldEngine.control_period_s`); the accelerations are the KKT
 forward dynamics of the controller's torques under the phase's constraints (Baumgarte-stabilised,
 :class:`humanoid_sim.dynamics.contact.ContactDynamics`), or the motion the controller solved for under this same model
 (``Command.motion``; the thesis controller's computed torque realises it exactly when no actuator saturates).
@@ -37,6 +38,7 @@ from humanoid_sim.dynamics.integrator import RungeKutta
 from humanoid_sim.dynamics.welds import WeldModel
 from humanoid_sim.engines.impact import touchdown
 from humanoid_sim.engines.landing import Landing, landing_record
+from humanoid_sim.errors import SimulationError
 from humanoid_sim.interfaces.controller import Command, Observation
 from humanoid_sim.interfaces.engine import StepRow
 from humanoid_sim.interfaces.log import SimLog
@@ -144,6 +146,11 @@ class WeldEngine:
         self.q = self.v = None
         self.anchors = None
         self.phase: Phase | None = None
+        self.control_period_s: float | None = None
+        """Control period, s: None calls the controller at every ode3 stage as a feedthrough function of the state
+        (the thesis's controller and the balance controller); a period calls it once per period and holds its
+        torques over the period (zero-order hold), ode3 integrating the robot over each period (the step ``h``
+        must be a whole number of periods)."""
         self._sole = SoleGeometry.from_model(hm)
         self.landings: list[Landing] = []
 
@@ -165,7 +172,10 @@ class WeldEngine:
     def step(self, t: float, h: float, k: int, control: Callable[[Observation], Command],
              checks: PhaseSelector) -> WeldRecord:
         """Advance (q, v) from t to t + h under the current phase's welds; the controller is called at every
-        stage.  Returns the step's log record (state at t and the stage-0 outputs)."""
+        stage, or once per :attr:`control_period_s` when one is set (:meth:`_step_held`).  Returns the step's log
+        record (state at t and the stage-0 outputs)."""
+        if self.control_period_s is not None:
+            return self._step_held(t, h, k, control, checks)
         phase, anchors = self.phase, self.anchors
         stage0: list[StageRecord] = []
 
@@ -184,6 +194,54 @@ class WeldEngine:
         else:
             adv = self.support_kernel.advance
             q_new, v_new = self.rk.step(f, t, q, v, h, advance=lambda *a: adv(phase, anchors, *a))
+        self.q, self.v = q_new, v_new
+        return WeldRecord(q, v, stage0[0])
+
+    def _step_held(self, t: float, h: float, k: int, control: Callable[[Observation], Command],
+                   checks: PhaseSelector) -> WeldRecord:
+        """:meth:`step` at the control period p = :attr:`control_period_s`: h / p controller updates, each
+        command's generalized torques held while one ode3 step of size p integrates the forward dynamics under the
+        phase's welds (a command's own ``motion`` is not used: it holds only at the state it was solved at).
+
+        Raises:
+            SimulationError: when h is not a whole number of control periods, or the state diverges."""
+        period = self.control_period_s
+        n_ctrl = round(h / period)
+        if not (n_ctrl >= 1 and abs(n_ctrl * period - h) <= 1e-9 * max(1.0, h)):
+            raise SimulationError(f"loop step h = {h!r} s: expected a whole number of control periods "
+                                  f"(WeldEngine.control_period_s = {period:g} s)")
+        phase, anchors = self.phase, self.anchors
+        stage0: list[StageRecord] = []
+        held: list = [None, None]  # the update's command and its generalized torques, N m
+
+        def f(ts: float, qs: np.ndarray, vs: np.ndarray, stage: int) -> np.ndarray:
+            checks.check_stage(ts, qs, vs, stage)
+            cmd, tau = held
+            fwd = self.dyn.forward_prepared(self.dyn.prepare(phase.contacts, anchors, qs, vs), tau)
+            checks.check_acceleration(ts, fwd.a)
+            if not stage0:
+                stage0.append(self._stage0_record(phase, qs, vs, cmd, fwd.a, fwd.lam))
+            return fwd.a
+
+        if self.support_kernel is None:
+            def project(qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                return self.project_on_support(phase, anchors, qs, vs)
+            opts = {"project": project}
+        else:
+            adv = self.support_kernel.advance
+            opts = {"advance": lambda *a: adv(phase, anchors, *a)}
+        q, v = self.q, self.v
+        q_new, v_new = q, v
+        for i in range(n_ctrl):
+            ti = t + i * period
+            if i:
+                checks.check_stage(ti, q_new, v_new, i)
+            cmd = control(Observation(ti, k, phase, q_new, v_new, anchors, i, checks.plan_delay))
+            if cmd.tau is None:  # thesis actuator torques only: tau = B(q) T at the update's state
+                cmd.tau = self.act.torque_map(q_new) @ cmd.T
+                cmd.tau[:6] = 0.0
+            held[:] = cmd, cmd.tau
+            q_new, v_new = self.rk.step(f, ti, q_new, v_new, period, **opts)
         self.q, self.v = q_new, v_new
         return WeldRecord(q, v, stage0[0])
 

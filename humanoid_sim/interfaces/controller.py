@@ -1,9 +1,10 @@
 """The controller interface: what the stepping loop gives a controller and what it must return.
 
 A controller turns the state, the phase and the references into actuator torques.  The loop
-(:mod:`humanoid_sim.sim.loop`) calls it whenever the engine needs torques: at every integration stage on the weld and
-oracle engines (the thesis's controller is a feedthrough function of the state, as in its Simulink model), at the
-control rate on an engine that holds torques between updates.
+(:mod:`humanoid_sim.sim.loop`) calls it whenever the engine needs torques: the shipped thesis and balance controllers
+at every integration stage on the weld and oracle engines (a feedthrough function of the state, as the thesis's
+Simulink model), a user's controller once per control period (1 ms) with its torques held
+(:func:`humanoid_sim.sim.simulate.user_engine_options`); on MuJoCo every controller at its control period.
 
 Units and frames (as everywhere in humanoid_sim): SI units; world frame = thesis frame 0 (x lateral, y forward,
 z up, ground z = 0); ``q`` (nq = 33) and ``v`` (nv = 32) are Pinocchio's: ``q = [base position (m), base
@@ -21,6 +22,7 @@ import numpy as np
 
 from humanoid_sim.dynamics.contact.constraints import Anchors
 from humanoid_sim.errors import ControllerError
+from humanoid_sim.interfaces.selector import CoordinateNames
 from humanoid_sim.robot.phases import Phase
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -111,7 +113,12 @@ class Command:
 class Controller(Protocol):
     """A controller: ``setup`` once, then called with an :class:`Observation`, it returns a :class:`Command` (or
     a plain array: (26,) joint torques in Pinocchio's joint order ``v[6:]``, or (nv,) generalized forces with zero
-    base rows).  ``name`` appears in messages."""
+    base rows).  ``name`` appears in messages.
+
+    An optional attribute ``control_period_s`` says how often the engine calls it: absent, every 1 ms with the
+    torques held in between (:data:`humanoid_sim.sim.simulate.USER_CONTROL_PERIOD_S`, stable for ordinary joint PD
+    gains); a number, that period in s; None, at every integration stage as a feedthrough of the state (the shipped
+    thesis and balance controllers, as the thesis's Simulink model evaluates its controller)."""
 
     name: str
 
@@ -124,18 +131,36 @@ class Controller(Protocol):
         ...
 
 
-def as_command(out: Any, nv: int, name: str) -> Command:
+def as_command(out: Any, nv: int, name: str, names: CoordinateNames | None = None) -> Command:
     """Check a controller's output and return it as a :class:`Command`.
 
-    Raises :class:`ControllerError` naming the controller for anything else than a Command or an array of shape
-    (26,) / (nv,), for non-finite values and for forces on the (unactuated) base rows."""
+    Args:
+        out: what the controller returned.
+        nv: the model's velocity dimension (32).
+        name: the controller's name, for the messages.
+        names: the state's component names, for the messages (None: entries by index).
+
+    Raises:
+        ControllerError: naming the controller, for anything else than a Command or an array of shape (26,) /
+            (nv,), for non-finite values (naming their joints) and for forces on the (unactuated) base rows.
+    """
+    def label(size: int, i: int) -> str:
+        return f"entry {i}" if names is None else names.component(size, i)
+
+    def order() -> str:  # the joints of a (nv - 6,) torque vector, in order
+        return "" if names is None else f" ({', '.join(n.split(' (')[0] for n in names.v[6:])})"
+
     if isinstance(out, Command):
         tau = out.tau
         if tau is None and out.T is not None:  # thesis actuator torques only (an engine maps them)
             T = out.T
             if not (isinstance(T, np.ndarray) and T.shape == (26,) and np.isfinite(np.add.reduce(T))):
+                bad = ""
+                if isinstance(T, np.ndarray) and T.shape == (26,) and T.dtype.kind == "f":
+                    i = int(np.flatnonzero(~np.isfinite(T))[0]) if not np.isfinite(T).all() else 0
+                    bad = f" (component T{i + 1} is {T[i]})"
                 raise ControllerError(f"controller {name!r} returned thesis torques T that are not 26 finite "
-                                      f"numbers: {T!r}")
+                                      f"numbers{bad}: {T!r}")
             return out
     else:
         out = Command(tau=out)
@@ -150,7 +175,7 @@ def as_command(out: Any, nv: int, name: str) -> Command:
         tau = np.concatenate([np.zeros(6), tau.astype(float)])
     elif tau.shape != (nv,):
         raise ControllerError(f"controller {name!r} returned torques of shape {tau.shape}, expected ({nv - 6},) "
-                              f"joint torques in Pinocchio's joint order or ({nv},) generalized forces")
+                              f"joint torques in Pinocchio's joint order{order()} or ({nv},) generalized forces")
     if tau.dtype != np.float64:
         try:
             tau = tau.astype(float)
@@ -158,13 +183,15 @@ def as_command(out: Any, nv: int, name: str) -> Command:
             raise ControllerError(f"controller {name!r} returned torques of type {tau.dtype}, expected numbers") \
                 from None
     if not np.isfinite(np.add.reduce(tau)):
-        bad = np.flatnonzero(~np.isfinite(tau))
-        raise ControllerError(f"controller {name!r} returned non-finite torques (entries {bad.tolist()} of the "
-                              f"v-ordered vector are {tau[bad].tolist()})")
+        nonfinite = np.flatnonzero(~np.isfinite(tau))
+        which = ", ".join(f"{label(nv, i)} = {tau[i]}" for i in nonfinite[:6]) + (", ..." if nonfinite.size > 6 else "")
+        raise ControllerError(f"controller {name!r} returned non-finite torques: {which} (entries {nonfinite.tolist()} "
+                              f"of the v-ordered vector)")
     if tau[0] != 0.0 or tau[1] != 0.0 or tau[2] != 0.0 or tau[3] != 0.0 or tau[4] != 0.0 or tau[5] != 0.0:
         if np.max(np.abs(tau[:6])) > 1e-9:  # 1e-9 N: round-off of a controller that zeroes the rows itself
+            rows = "" if names is None else " (" + ", ".join(names.v[:6]) + " rows)"
             raise ControllerError(f"controller {name!r} returned forces on the unactuated base rows "
-                                  f"{tau[:6].tolist()}; the base (free flyer) has no actuator")
+                                  f"{tau[:6].tolist()}{rows}; the base (free flyer) has no actuator")
         tau = tau.copy()
         tau[:6] = 0.0
     out.tau = tau

@@ -145,7 +145,9 @@ class SimLog:
         return out
 
     def save(self, path: Path, phase_names: list[str], extra: dict[str, np.ndarray] | None = None) -> None:
-        """Save ``results.npz`` atomically."""
+        """Save ``results.npz`` atomically: the signals, ``phase_names``, ``signal_units`` and the arrays of
+        ``extra`` (``Run.write`` adds the column names ``theta_names``, ``T_names``, ``q_names``, ``v_names`` and the
+        ``engine``)."""
         import io
 
         arrays: dict[str, Any] = self.arrays()

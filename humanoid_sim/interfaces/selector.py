@@ -11,7 +11,9 @@ touchdown (velocity reset, landing data) themselves.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,14 +22,74 @@ from humanoid_sim.references.chapter3 import ReferenceTrajectory
 from humanoid_sim.robot.phases import Phase, SwitchThresholds, dsp_should_end, ssp_should_end
 from humanoid_sim.scenario.schema import SimulationSettings
 
+if TYPE_CHECKING:  # pragma: no cover
+    from humanoid_sim.robot.model import HumanoidModel
+
 DIVERGED_RATE = 100.0  # rad/s or m/s: no joint or base rate of a walking 55 kg humanoid comes near this
 
+BASE_Q_NAMES = ("base position x", "base position y", "base position z", "base quaternion x", "base quaternion y",
+                "base quaternion z", "base quaternion w")
+BASE_V_NAMES = ("base linear velocity x", "base linear velocity y", "base linear velocity z",
+                "base angular velocity x", "base angular velocity y", "base angular velocity z")
 
 
 def all_finite(x: np.ndarray) -> bool:
     """True when every entry of x is finite: one reduction (a NaN or an infinity makes the sum non-finite; so would
     an overflow of the sum, i.e. magnitudes near 1e308, which are a divergence too)."""
     return math.isfinite(np.add.reduce(x))
+
+
+@dataclass(frozen=True)
+class CoordinateNames:
+    """Names of the state's components for messages: a joint as its thesis angle and body, e.g. "theta11 (right
+    thigh, body 11)" (theta_k is the angle of thesis body k, Table 2.6), a base component as "base linear velocity
+    x".
+
+    Attributes:
+        q: the nq configuration components (Pinocchio's order).
+        v: the nv velocity components (Pinocchio's order; ``v[6:]`` are the joints of a controller's torques).
+        theta: the 26 joint angles in the thesis's eq. 4.1 order.
+    """
+
+    q: tuple[str, ...]
+    v: tuple[str, ...]
+    theta: tuple[str, ...]
+
+    @classmethod
+    def of(cls, hm: HumanoidModel) -> CoordinateNames:
+        """The names of ``hm``'s coordinates (thesis angles from ``THETA_NAMES``, bodies from the model YAML)."""
+        from humanoid_sim.robot.model import THETA_NAMES
+
+        theta = tuple(joint_label(hm, name) for name in THETA_NAMES)
+        q = [f"q component {i}" for i in range(hm.model.nq)]
+        v = [f"v component {i}" for i in range(hm.model.nv)]
+        q[:7], v[:6] = BASE_Q_NAMES, BASE_V_NAMES
+        for label, iq, iv in zip(theta, hm.theta_q_idx, hm.theta_v_idx):
+            q[iq], v[iv] = label, label
+        return cls(tuple(q), tuple(v), theta)
+
+    def component(self, size: int, i: int) -> str:
+        """The name of entry ``i`` of a vector of ``size`` entries: a configuration (nq), a velocity, acceleration or
+        generalized force (nv), or thesis angles, rates or accelerations (26, eq. 4.1 order: the oracle engine's
+        state)."""
+        for names in (self.q, self.v, self.theta):
+            if size == len(names):
+                return names[i]
+        return str(i)
+
+
+def joint_label(hm: HumanoidModel, theta: str) -> str:
+    """``theta`` with its thesis body, e.g. "theta9 (right shank, body 9)" (theta_k moves body k; theta17r and
+    theta17l are the two hips' angles of body 17)."""
+    k = int(re.sub(r"\D", "", theta))
+    body = hm.spec.bodies.get(k)
+    return f"{theta} (body {k})" if body is None else f"{theta} ({body.name.replace('_', ' ')}, body {k})"
+
+
+def _first_bad(x: np.ndarray) -> int:
+    """Index of the first non-finite entry of x (0 when all are finite, e.g. when only their sum overflows)."""
+    bad = np.flatnonzero(~np.isfinite(np.asarray(x, dtype=float)))
+    return int(bad[0]) if bad.size else 0
 
 @dataclass
 class PhaseRecord:
@@ -47,8 +109,10 @@ class PhaseSelector:
     """Current phase, phase records and the step-boundary decisions of thesis 6.1.1."""
 
     def __init__(self, traj: ReferenceTrajectory, thresholds: SwitchThresholds, settings: SimulationSettings,
-                 toe_start: np.ndarray | None) -> None:
-        """``toe_start``: the swing toe point at t = 0 (P_i of the first SSP), world, m."""
+                 toe_start: np.ndarray | None, names: CoordinateNames | None = None) -> None:
+        """``toe_start``: the swing toe point at t = 0 (P_i of the first SSP), world, m.  ``names``: the state's
+        component names for the messages (None: components by index)."""
+        self.names = names
         self.traj = traj
         self.thresholds = thresholds
         self.settings = settings
@@ -86,26 +150,42 @@ class PhaseSelector:
     def where(self) -> str:
         return f"phase {self.k + 1} ({self.phase.value})"
 
+    def name(self, x: np.ndarray, i: int) -> str:
+        """The name of entry ``i`` of the state vector ``x`` (:class:`CoordinateNames`), or its index."""
+        return str(i) if self.names is None else self.names.component(len(x), i)
+
+    def _non_finite(self, state: np.ndarray, rates: np.ndarray) -> str:
+        """Which entry of the state is not finite, with its value: "velocity component theta9 (right shank, body 9)
+        is nan"."""
+        if not all_finite(state):
+            i = _first_bad(state)
+            return f"position component {self.name(state, i)} is {state[i]:.3g}"
+        i = _first_bad(rates)
+        return f"velocity component {self.name(rates, i)} is {rates[i]:.3g}"
+
     def check_stage(self, t: float, state: np.ndarray, rates: np.ndarray, stage: int) -> None:
         """Raise :class:`SimulationError` if an integration stage's state is not finite."""
         if not (all_finite(state) and all_finite(rates)):
             raise SimulationError(f"non-finite state at t = {t:.3f} s (integration stage {stage}) in "
-                                  f"{self.where()}: the motion diverged")
+                                  f"{self.where()}: {self._non_finite(state, rates)}; the motion diverged")
 
     def check_acceleration(self, t: float, acc: np.ndarray) -> None:
         """Raise :class:`SimulationError` if the dynamics returned a non-finite acceleration."""
         if not all_finite(acc):
-            raise SimulationError(f"non-finite acceleration at t = {t:.3f} s in {self.where()}: the motion "
-                                  f"diverged")
+            i = _first_bad(acc)
+            raise SimulationError(f"non-finite acceleration at t = {t:.3f} s in {self.where()}: "
+                                  f"acceleration component {self.name(acc, i)} is {acc[i]:.3g}; the motion diverged")
 
     def check_state(self, t: float, state: np.ndarray, rates: np.ndarray, hip_p: np.ndarray) -> None:
         """Raise :class:`SimulationError` on a non-finite state, rates above :data:`DIVERGED_RATE`, the hip CoM
         below the fall height or a phase lasting more than ``max_phase_overtime`` x its nominal duration."""
         if not (all_finite(state) and all_finite(rates)):
-            raise SimulationError(f"non-finite state at t = {t:.3f} s in {self.where()}")
+            raise SimulationError(f"non-finite state at t = {t:.3f} s in {self.where()}: "
+                                  f"{self._non_finite(state, rates)}")
         if np.max(np.abs(rates)) > DIVERGED_RATE:
             i = int(np.argmax(np.abs(rates)))
-            raise SimulationError(f"diverged at t = {t:.3f} s in {self.where()}: velocity component {i} is "
+            raise SimulationError(f"diverged at t = {t:.3f} s in {self.where()}: velocity component "
+                                  f"{self.name(rates, i)} is "
                                   f"{rates[i]:.3g} (limit {DIVERGED_RATE:g} rad/s or m/s)")
         if hip_p[2] < self.settings.fall_height_m:
             raise FallError(f"fall: hip CoM height {hip_p[2]:.3f} m below {self.settings.fall_height_m} m "

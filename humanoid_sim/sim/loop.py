@@ -46,7 +46,7 @@ from humanoid_sim.errors import FallError
 from humanoid_sim.interfaces.controller import Command, Controller, ControllerError, Observation, as_command
 from humanoid_sim.interfaces.engine import Engine, StepRow
 from humanoid_sim.interfaces.log import SimLog
-from humanoid_sim.interfaces.selector import PhaseRecord, PhaseSelector, SimulationError
+from humanoid_sim.interfaces.selector import CoordinateNames, PhaseRecord, PhaseSelector, SimulationError
 from humanoid_sim.references.chapter3 import ReferenceTrajectory
 from humanoid_sim.robot.phases import Phase, SwitchThresholds, ssp_should_end
 from humanoid_sim.scenario.schema import Scenario
@@ -94,10 +94,11 @@ class _Checked:
     """The controller as the engine calls it: counted, its output checked (:func:`as_command`), its unexpected
     exceptions turned into :class:`ControllerError` naming it."""
 
-    def __init__(self, controller: Controller, nv: int) -> None:
+    def __init__(self, controller: Controller, nv: int, names: CoordinateNames | None = None) -> None:
         self.controller = controller
         self.name = getattr(controller, "name", type(controller).__name__)
         self.nv = nv
+        self.names = names
         self.calls = 0
 
     def __call__(self, obs: Observation) -> Command:
@@ -109,7 +110,7 @@ class _Checked:
         except Exception as exc:  # a user's controller: any failure ends the run with its name
             raise ControllerError(f"controller {self.name!r} raised {type(exc).__name__} at t = {obs.t:.3f} s: "
                                   f"{exc}") from exc
-        return as_command(out, self.nv, self.name)
+        return as_command(out, self.nv, self.name, self.names)
 
 
 def _travelled(sel: PhaseSelector, toe: np.ndarray) -> bool:
@@ -132,13 +133,15 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
     nominal_end = traj.phases[-1].t_end
     t_stop = t_end if t_end is not None else (scenario.simulation.t_end_s or np.inf)
     errors = RUN_ERRORS + tuple(getattr(engine, "errors", ()))
-    control = _Checked(controller, engine.model.nv)
+    hm = getattr(engine, "hm", None)
+    names = None if hm is None else CoordinateNames.of(hm)  # joints named in the messages
+    control = _Checked(controller, engine.model.nv, names)
     t = 0.0
     engine.start(q0, hold if hold is not None else Phase(traj.phases[0].name))
     first_swing = traj.phases[0].swing_foot
     engine.hip_com()
     sel = PhaseSelector(traj, thresholds_of(scenario), scenario.simulation,
-                        None if first_swing is None else engine.toe_point(first_swing))
+                        None if first_swing is None else engine.toe_point(first_swing), names)
     if hold is not None:
         sel.hold_in(hold)
     rows: list[StepRow] = []

@@ -33,13 +33,47 @@ from humanoid_sim.robot.phases import Phase
 from humanoid_sim.scenario.schema import Scenario
 from humanoid_sim.sim.loop import SimResult, run
 
+USER_CONTROL_PERIOD_S = 0.001
+"""Control period of a user's controller, s (1 kHz, a torque-controlled humanoid's servo rate): its torques are
+held over the period on every engine that holds torques (welds, MuJoCo).  A PD held for a period T is stable while
+kd T / I < 2 for the lightest joint motion of effective inertia I; on the welds in double support that is the head's
+yaw, I = 0.0144 kg m^2, so 1 ms holds kd up to 28 N m s/rad (10 ms: 2.8)."""
+
+USER_ARMATURE_KG_M2 = 0.02
+"""Rotor inertia reflected on each joint for a user's controller on MuJoCo, kg m^2 (a geared motor's: a 2e-6 kg m^2
+rotor behind a 100:1 gear).  On real ground a foot's toe body is free and light (0.13 kg, 1.3e-4 kg m^2 about its
+joint): a held PD with kd = 20 N m s/rad would need a period below 13 us.  With the armature every joint has I >=
+0.02 kg m^2, which holds kd up to 40 N m s/rad at 1 ms."""
+
+
+def user_engine_options(engine: str, controller: Controller) -> dict:
+    """The engine settings a controller runs with.
+
+    A controller's ``control_period_s`` attribute says how it runs: None for a feedthrough of the state evaluated at
+    every integration stage (the shipped thesis and balance controllers), a period in s for a controller whose
+    torques are held over that period, :data:`USER_CONTROL_PERIOD_S` when the attribute is absent (a user's
+    controller). A held controller gets that period on the weld engine and on MuJoCo, and on MuJoCo the joints'
+    armature :data:`USER_ARMATURE_KG_M2`; the thesis oracle calls every controller at each ode3 stage.
+
+    Returns:
+        The engine options (``control_period_s``, ``armature_kg_m2``), empty for a feedthrough controller.
+    """
+    period = getattr(controller, "control_period_s", USER_CONTROL_PERIOD_S)
+    if period is None or engine not in ("pinocchio", "mujoco"):
+        return {}
+    if engine == "mujoco":
+        return {"control_period_s": float(period), "armature_kg_m2": USER_ARMATURE_KG_M2}
+    return {"control_period_s": float(period)}
+
 
 def _settings_for(controller: Controller, scenario: Scenario) -> object:
     """The scenario's section for ``controller``: the balance controller's or the thesis controller's settings, else a
     user controller's ``controller_settings``."""
+    from humanoid_sim.controllers.balance.controller import BalanceController
+
     if isinstance(controller, ThesisController):
         return scenario.controller
-    if type(controller).__name__ == "BalanceController":
+    if isinstance(controller, BalanceController):
         return scenario.balance
     return scenario.controller_settings
 
@@ -47,8 +81,10 @@ def _settings_for(controller: Controller, scenario: Scenario) -> object:
 class Simulator:
     """One scenario on one engine with one controller.
 
-    ``engine``: "pinocchio" (default) or "thesis" (:data:`humanoid_sim.engines.ENGINE_NAMES`).  ``controller``: an
-    object of the controller interface, or None for the scenario's ``controller_class`` or else the thesis's.
+    ``engine``: "pinocchio" (default), "thesis" or "mujoco" (:data:`humanoid_sim.engines.ENGINE_NAMES`).
+    ``controller``: an object of the controller interface, or None for the scenario's ``controller_class`` or else
+    the thesis's.  A user's controller runs at a control period with its torques held, on MuJoCo with the joints'
+    armature (:func:`user_engine_options`); the shipped controllers run at their engines' own rates.
     ``compiled``: for the weld engine and the thesis controller, use the compiled kernel (None = when numba is
     installed and the kernel agrees with the reference path, True = required, False = never; ``--no-kernel``).
     """
@@ -60,7 +96,6 @@ class Simulator:
         self.model = hm.model
         self.q0 = initial_state(hm, scenario)
         self.traj = make_trajectory(hm, scenario, self.q0)
-        self.engine = make_engine(engine, hm, scenario, self.traj, compiled=compiled)
         if controller is None:
             if scenario.controller_class is not None:
                 from humanoid_sim.controllers.loading import load_controller
@@ -72,6 +107,11 @@ class Simulator:
                 controller = BalanceController(scenario.balance, compiled=compiled is not False)  # --no-kernel
             else:
                 controller = ThesisController(compiled=compiled if engine in ("pinocchio", "mujoco") else False)
+        options = user_engine_options(engine, controller)
+        period = options.pop("control_period_s", None) if engine == "pinocchio" else None
+        self.engine = make_engine(engine, hm, scenario, self.traj, compiled=compiled, **options)
+        if period is not None:
+            self.engine.control_period_s = period
         self.controller = controller
         controller.setup(ControlContext(hm, scenario, self.traj, self.q0, self.engine.name, self.engine.constraints,
                                         settings=_settings_for(controller, scenario)))
@@ -138,4 +178,5 @@ class Simulator:
                    hold=hold)
 
 
-__all__ = ["BASIC", "PhaseRecord", "SimResult", "SimulationError", "Simulator", "unwrap_to", "yaw_of"]
+__all__ = ["BASIC", "USER_ARMATURE_KG_M2", "USER_CONTROL_PERIOD_S", "PhaseRecord", "SimResult", "SimulationError",
+           "Simulator", "unwrap_to", "user_engine_options", "yaw_of"]

@@ -6,10 +6,13 @@
   (:attr:`humanoid_sim.robot.actuators.Actuators.limits`);
   below, the share of completed walks in which the actuator saturated at least once.  A sweep with a text axis
   (a choice of gait) draws one box per choice instead (:func:`sizing_group`).
-- :func:`plot_feasibility`: over the first two swept parameters, the share of walks that completed, the
-  fraction of steps with a saturated actuator and the contact audit's infeasible fraction of steps (both means
-  over the completed walks).  Grid parameters give a table of cells (other parameters pooled in each cell);
-  when a random parameter is among the two, one marker per walk.
+- :func:`plot_feasibility` (:func:`feasibility_figure`): one row of panels per value of the sweep's text axis (a
+  gait; never pooled), and in each row, over the first two other swept parameters, the share of walks that
+  completed, the fraction of steps with a saturated actuator and the contact audit's infeasible fraction of steps
+  (both means over the completed walks).  Grid parameters give a table of cells (further parameters pooled in each
+  cell); a cell in which every walk failed is hatched and reads "failed" on every panel.  When a random parameter
+  is among the two, one marker per walk, a failed walk an "x".  Axes are labelled in physical units
+  (:mod:`humanoid_sim.sweep.labels`).
 """
 
 from __future__ import annotations
@@ -198,71 +201,138 @@ def feasibility_cells(rows: Sequence[dict[str, Any]], ax_x: Axis, ax_y: Axis | N
     return xs, ys, n, ok, means
 
 
-def plot_feasibility(rows: Sequence[dict[str, Any]], axes: Sequence[Axis], path: Path, title: str = "") -> None:
-    """Write the completion/feasibility map of ``rows`` over the first two of ``axes`` to ``path`` (PNG): the
-    share of walks that completed, then each of :data:`METRICS` averaged over the completed walks."""
-    plt = _plt()
-    ax_x = axes[0]
-    ax_y = axes[1] if len(axes) > 1 else None
-    fig, panels = plt.subplots(1, 1 + len(METRICS), figsize=(6 * (1 + len(METRICS)), 5))
-    completed = np.array([bool(r.get("completed")) for r in rows])
-    metrics = [np.array([_num(r.get(col)) for r in rows]) for col, _ in METRICS]
-    ylabel = ax_y.column if ax_y is not None else ""
-    if ax_x.values != () and (ax_y is None or ax_y.values != ()):   # grid x grid: a table of cells
-        xs, ys, n, ok, means = feasibility_cells(rows, ax_x, ax_y)
-        grids = [(np.where(n > 0, ok / np.maximum(n, 1), np.nan), "RdYlGn", "walks completed",
-                  [[f"{int(ok[j, i])}/{int(n[j, i])}" for i in range(len(xs))] for j in range(len(ys))])]
-        for mean, (_, label) in zip(means, METRICS):
-            grids.append((mean, "RdYlGn_r", label + ",\nmean over completed walks",
-                          [["-" if not np.isfinite(mean[j, i]) else f"{mean[j, i]:.2f}" for i in range(len(xs))]
-                           for j in range(len(ys))]))
-        for panel, (data, cmap, label, texts) in zip(panels, grids):
-            im = panel.imshow(np.ma.masked_invalid(data), origin="lower", cmap=cmap, vmin=0.0, vmax=1.0, aspect="auto")
-            for j in range(len(ys)):
-                for i in range(len(xs)):
-                    panel.text(i, j, texts[j][i], ha="center", va="center", fontsize=9)
-            panel.set_xticks(range(len(xs)))
-            panel.set_xticklabels([_label(v) for v in xs], fontsize=8)
-            panel.set_yticks(range(len(ys)))
-            panel.set_yticklabels([_label(v) for v in ys] if ax_y is not None else [""], fontsize=8)
-            panel.set_xlabel(ax_x.column, fontsize=8)
-            panel.set_ylabel(ylabel, fontsize=8)
-            panel.set_title(label, fontsize=10)
-            fig.colorbar(im, ax=panel, fraction=0.046)
-    else:   # a random parameter among the two: one marker per walk
-        def coords(axis: Axis | None) -> tuple[np.ndarray, list[str] | None]:
-            if axis is None:
-                return np.zeros(len(rows)), None
-            vals = [r.get(axis.column) for r in rows]
-            if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals):
-                return np.array(vals, dtype=float), None
-            cats = list(dict.fromkeys(_label(v) for v in vals))
-            return np.array([cats.index(_label(v)) for v in vals], dtype=float), cats
+FAILED_HATCH = "xxx"
+"""Hatch of a map cell in which every walk failed (on every panel: a failed cell has no value to colour)."""
+NO_WALK = "#f2f2f2"
 
-        x, xcats = coords(ax_x)
-        y, ycats = coords(ax_y)
-        for k, panel in enumerate(panels):
-            if k == 0:
-                panel.scatter(x[completed], y[completed], c="#27ae60", marker="o", s=30, label="completed")
-                panel.set_title("walks: completed (o) or failed (x)", fontsize=10)
-            else:
-                sc = panel.scatter(x[completed], y[completed], c=metrics[k - 1][completed], cmap="RdYlGn_r",
-                                   vmin=0.0, vmax=1.0, marker="o", s=30)
-                fig.colorbar(sc, ax=panel, fraction=0.046)
-                panel.set_title(METRICS[k - 1][1] + ",\ncompleted walks", fontsize=10)
-            panel.scatter(x[~completed], y[~completed], c=FAILED_COLOUR, marker="x", s=30, label="failed")
-            panel.set_xlabel(ax_x.column, fontsize=8)
-            panel.set_ylabel(ylabel, fontsize=8)
-            if xcats:
-                panel.set_xticks(range(len(xcats)))
-                panel.set_xticklabels(xcats, fontsize=8)
-            if ycats:
-                panel.set_yticks(range(len(ycats)))
-                panel.set_yticklabels(ycats, fontsize=8)
-            panel.grid(alpha=0.3)
-        panels[0].legend(fontsize=8)
+
+def map_layout(axes: Sequence[Axis]) -> tuple[str | None, list[Axis]]:
+    """The feasibility map's panel split and map axes: the text axis (:func:`sizing_group`: one row of panels per
+    value), and the first two other axes (x, then y)."""
+    group = sizing_group(axes)
+    return group, [a for a in axes if a.column != group][:2]
+
+
+def _group_values(rows: Sequence[dict[str, Any]], axes: Sequence[Axis], group: str | None) -> list[Any]:
+    if group is None:
+        return [None]
+    axis = next(a for a in axes if a.column == group)
+    return list(axis.values) + [v for v in dict.fromkeys(r.get(group) for r in rows) if v not in axis.values]
+
+
+def feasibility_figure(rows: Sequence[dict[str, Any]], axes: Sequence[Axis], title: str = "",
+                       base_doc: dict | None = None) -> Any:
+    """The completion/feasibility map of ``rows`` (a matplotlib Figure).
+
+    One row of panels per value of the sweep's text axis (:func:`map_layout`: e.g. one per gait; never pooled), and
+    per row the share of walks that completed, then each of :data:`METRICS` averaged over the completed walks.  The
+    map's axes are the first two other axes, labelled in physical units (:mod:`humanoid_sim.sweep.labels`, from the
+    base scenario ``base_doc``).  A cell in which every walk failed is hatched (:data:`FAILED_HATCH`) and reads
+    "failed" on every panel; a cell with no walk is blank.  Random axes among the two: one marker per walk, a
+    failed walk an "x"."""
+    from matplotlib.patches import Patch, Rectangle
+
+    from humanoid_sim.sweep.labels import axis_units
+
+    plt = _plt()
+    group, map_axes = map_layout(axes)
+    ax_x = map_axes[0] if map_axes else None
+    ax_y = map_axes[1] if len(map_axes) > 1 else None
+    ux = axis_units(ax_x, base_doc) if ax_x is not None else None
+    uy = axis_units(ax_y, base_doc) if ax_y is not None else None
+    ug = axis_units(next(a for a in axes if a.column == group), base_doc) if group is not None else None
+    values = _group_values(rows, axes, group)
+    ncol = 1 + len(METRICS)
+    fig, panels = plt.subplots(len(values), ncol, figsize=(6 * ncol, 4.6 * len(values)), squeeze=False)
+    titles = ["walks completed"] + [label + ",\nmean over completed walks" for _, label in METRICS]
+    grid = ax_x is not None and ax_x.values != () and (ax_y is None or ax_y.values != ())
+    for g, gv in enumerate(values):
+        rows_g = [r for r in rows if group is None or r.get(group) == gv]
+        prefix = f"{ug.label} = {gv}: " if ug is not None else ""
+        for k in range(ncol):
+            panel = panels[g, k]
+            panel.set_title(prefix + titles[k], fontsize=10)
+            panel.set_xlabel(ux.label if ux is not None else "", fontsize=8)
+            panel.set_ylabel(uy.label if uy is not None else "", fontsize=8)
+        if ax_x is None:
+            continue
+        if grid:
+            xs, ys, n, ok, means = feasibility_cells(rows_g, ax_x, ax_y)
+            failed = (n > 0) & (ok == 0)
+            share = np.where((n > 0) & ~failed, ok / np.maximum(n, 1), np.nan)
+            data = [(share, "RdYlGn")] + [(np.where(failed, np.nan, m), "RdYlGn_r") for m in means]
+            for k, (d, cmap) in enumerate(data):
+                panel = panels[g, k]
+                panel.set_facecolor(NO_WALK)
+                im = panel.imshow(np.ma.masked_invalid(d), origin="lower", cmap=cmap, vmin=0.0, vmax=1.0,
+                                  aspect="auto")
+                fig.colorbar(im, ax=panel, fraction=0.046)
+                for j in range(len(ys)):
+                    for i in range(len(xs)):
+                        if n[j, i] == 0:
+                            text = "no walk"
+                        elif failed[j, i]:
+                            panel.add_patch(Rectangle((i - 0.5, j - 0.5), 1.0, 1.0, facecolor="#d9d9d9",
+                                                      edgecolor=FAILED_COLOUR, hatch=FAILED_HATCH, lw=0.0,
+                                                      gid="failed-cell"))
+                            text = f"failed\n0/{int(n[j, i])}" if k == 0 else "failed"
+                        elif k == 0:
+                            text = f"{int(ok[j, i])}/{int(n[j, i])}"
+                        else:
+                            v = d[j, i]
+                            text = ("-" if not np.isfinite(v) else f"{v:.2f}") + \
+                                (f"\n({int(ok[j, i])}/{int(n[j, i])} done)" if ok[j, i] < n[j, i] else "")
+                        panel.text(i, j, text, ha="center", va="center", fontsize=8,
+                                   fontweight="bold" if failed[j, i] else "normal")
+                panel.set_xticks(range(len(xs)))
+                panel.set_xticklabels([ux.tick(v) for v in xs], fontsize=8)
+                panel.set_yticks(range(len(ys)))
+                panel.set_yticklabels([uy.tick(v) for v in ys] if uy is not None else [""], fontsize=8)
+        else:   # a random parameter among the two: one marker per walk
+            completed = np.array([bool(r.get("completed")) for r in rows_g], dtype=bool)
+
+            def coords(u: Any, rs: list[dict[str, Any]]) -> tuple[np.ndarray, list[str] | None]:
+                if u is None:
+                    return np.zeros(len(rs)), None
+                vals = [u.value(r.get(u.axis.column)) for r in rs]
+                if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals):
+                    return np.array(vals, dtype=float), None
+                cats = list(dict.fromkeys(_label(v) for v in vals))
+                return np.array([cats.index(_label(v)) for v in vals], dtype=float), cats
+
+            x, xcats = coords(ux, rows_g)
+            y, ycats = coords(uy, rows_g)
+            for k in range(ncol):
+                panel = panels[g, k]
+                if k == 0:
+                    panel.scatter(x[completed], y[completed], c="#27ae60", marker="o", s=30, label="completed")
+                else:
+                    m = np.array([_num(r.get(METRICS[k - 1][0])) for r in rows_g])
+                    sc = panel.scatter(x[completed], y[completed], c=m[completed], cmap="RdYlGn_r", vmin=0.0,
+                                       vmax=1.0, marker="o", s=30)
+                    fig.colorbar(sc, ax=panel, fraction=0.046)
+                panel.scatter(x[~completed], y[~completed], c=FAILED_COLOUR, marker="x", s=40, label="failed",
+                              gid="failed-walks")
+                if xcats:
+                    panel.set_xticks(range(len(xcats)))
+                    panel.set_xticklabels(xcats, fontsize=8)
+                if ycats:
+                    panel.set_yticks(range(len(ycats)))
+                    panel.set_yticklabels(ycats, fontsize=8)
+                panel.grid(alpha=0.3)
+            panels[g, 0].legend(fontsize=8)
+    fig.legend(handles=[Patch(facecolor="#d9d9d9", edgecolor=FAILED_COLOUR, hatch=FAILED_HATCH,
+                              label="every walk of the cell failed")], loc="lower right", fontsize=8)
     fig.suptitle(title or f"Completion and feasibility over {len(rows)} walks")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    return fig
+
+
+def plot_feasibility(rows: Sequence[dict[str, Any]], axes: Sequence[Axis], path: Path, title: str = "",
+                     base_doc: dict | None = None) -> None:
+    """Write :func:`feasibility_figure` to ``path`` (PNG)."""
+    plt = _plt()
+    fig = feasibility_figure(rows, axes, title, base_doc)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -166,6 +166,38 @@ def apply(doc: dict, path: DottedPath, value: Any, mode: str) -> None:
     walk(doc, 0, "")
 
 
+def values_at(doc: Any, path: DottedPath) -> list[Any]:
+    """Every value ``path`` addresses in ``doc``, flattened in document order ([] where the path does not fit:
+    a missing key, an index out of range).  A list at the end of the path gives its numbers, nested lists
+    flattened."""
+    out: list[Any] = []
+
+    def flat(node: Any) -> None:
+        if isinstance(node, list):
+            for v in node:
+                flat(v)
+        else:
+            out.append(node)
+
+    def walk(node: Any, i: int) -> None:
+        if i == len(path.tokens):
+            flat(node)
+            return
+        tok = path.tokens[i]
+        if isinstance(tok, str) and tok != ALL:
+            if isinstance(node, dict) and tok in node:
+                walk(node[tok], i + 1)
+            return
+        if not isinstance(node, list):
+            return
+        for j in (range(len(node)) if tok == ALL else [tok]):
+            if j < len(node):
+                walk(node[j], i + 1)
+
+    walk(doc, 0)
+    return out
+
+
 def _kind(x: Any) -> str:
     if isinstance(x, dict):
         return "a mapping"

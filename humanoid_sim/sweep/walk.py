@@ -78,7 +78,7 @@ def run_walk(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, 
 
 
 # --------------------------------------------------------------------------------------------- rows
-_NOT_COLUMNS = ("scenario", "engine", "completed", "status", "reason", "phase_log")
+_NOT_COLUMNS = ("scenario", "engine", "completed", "status", "reason", "phase_log", "provenance")
 
 
 def flatten_summary(summary: dict[str, Any]) -> dict[str, Any]:

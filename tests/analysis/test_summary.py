@@ -115,3 +115,35 @@ def test_the_feasibility_verdict_reads_the_audit_with_its_edge_tolerance() -> No
         "feasible": False, "feasibility_reason": "fell on real ground: foot R rolled"}
     assert feasibility({"fell": False, "contact": _contact(-0.3)})["feasible"] is True
     assert feasibility({"contact": {"error": "bad log"}})["feasible"] is None
+
+
+# --------------------------------------------------------------------------------------------- provenance
+def test_provenance_says_what_made_the_run():
+    import datetime
+
+    import numpy
+
+    import humanoid_sim
+    from humanoid_sim.analysis.summary import PROVENANCE_PACKAGES, provenance
+
+    p = provenance(["walk.py", "--until", "1"])
+    assert set(p) == {"version", "git_commit", "packages", "date", "command"}
+    assert p["version"] == humanoid_sim.__version__
+    assert p["git_commit"] is None or (isinstance(p["git_commit"], str) and len(p["git_commit"]) == 40)
+    assert tuple(p["packages"]) == PROVENANCE_PACKAGES == ("pin", "mujoco", "numpy", "numba", "scipy")
+    assert p["packages"]["numpy"] == numpy.__version__
+    assert all(v is None or isinstance(v, str) for v in p["packages"].values())
+    date = datetime.datetime.fromisoformat(p["date"])
+    assert date.utcoffset() == datetime.timedelta(0)
+    assert p["command"] == ["walk.py", "--until", "1"]
+    assert provenance("python API: run_walk('sim1')")["command"] == "python API: run_walk('sim1')"
+    assert json.loads(json.dumps(p)) == p
+
+
+def test_git_commit_is_none_outside_a_checkout_or_without_git(tmp_path, monkeypatch):
+    from humanoid_sim.analysis.summary import git_commit
+
+    monkeypatch.setenv("GIT_CEILING_DIRECTORIES", str(tmp_path.parent))
+    assert git_commit(tmp_path) is None                       # not a git checkout
+    monkeypatch.setenv("PATH", str(tmp_path))                 # no git on PATH
+    assert git_commit() is None

@@ -189,16 +189,22 @@ def test_injected_runtime_faults_exit_1(tmp_path, monkeypatch, fault, reason_sta
     assert 0 < len(res["t"]) < 60 and np.all(np.isfinite(res["q"]))  # the healthy steps, nothing after
 
 
+SIGINT_EXIT_S = 2.0
+"""s: the longest a walk may take to exit after Ctrl-C, its log saved."""
+
+
 @pytest.mark.slow
-def test_sigint_keeps_partial_results(tmp_path):
+def test_sigint_keeps_partial_results_and_exits_at_once(tmp_path):
+    """Ctrl-C mid-walk: results.npz and summary.json written, the figures and playback (which were asked for)
+    skipped, the process gone within SIGINT_EXIT_S."""
     # sim1 with a 2 ms step: five times the work of the default walk (~5-10 s wall), so that the interrupt lands
     # in the stepping loop however fast the simulator becomes
     scen = sim1_variant(tmp_path, "fine", lambda d: d["simulation"].__setitem__("step_s", 0.002))
     out = tmp_path / "out"
     # the child gets SIGINT's default disposition back: a test run started in the background by a
     # non-interactive shell inherits "ignore SIGINT", and Python then never raises KeyboardInterrupt
-    proc = subprocess.Popen([sys.executable, str(WALK), str(scen), "--out", str(out), "--quiet", "--no-html",
-                             "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+    proc = subprocess.Popen([sys.executable, str(WALK), str(scen), "--out", str(out), "--quiet", "--figures", "all"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
                             cwd=ROOT, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 60
@@ -208,15 +214,21 @@ def test_sigint_keeps_partial_results(tmp_path):
             time.sleep(0.02)
         time.sleep(0.5)  # a fraction of the walk: it takes several seconds of wall time
         proc.send_signal(signal.SIGINT)
+        sent = time.monotonic()
         stdout, stderr = proc.communicate(timeout=60)
+        exit_s = time.monotonic() - sent
     finally:
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 1, (stdout, stderr)
     assert "Traceback" not in stderr
+    assert exit_s <= SIGINT_EXIT_S, f"walk.py took {exit_s:.2f} s to exit after SIGINT"
     summary, res = check_partial(out, "interrupted by the user at t = ")
+    assert summary["status"] == "interrupted"
     assert 0 < len(res["t"]) and summary["phases_completed"] < summary["phases_planned"]
     assert np.all(np.diff(res["t"]) > 0)
+    assert not list(out.glob("*.png")) and not (out / "playback.html").exists()
+    assert "INTERRUPTED (stopped on request" in stdout and "figures and playback skipped" in stderr
 
 
 # --------------------------------------------------------------------------------------------- the audit
@@ -292,7 +304,7 @@ def test_outputs_get_the_mode_open_would_give(tmp_path, umask):
     out = tmp_path / "out"
     old = os.umask(umask)
     try:
-        assert main([str(SIM1), "--out", str(out), "--quiet", "--until", "0.3"]) == 0
+        assert main([str(SIM1), "--out", str(out), "--quiet", "--until", "0.3", "--figures", "all"]) == 0
     finally:
         os.umask(old)
     files = sorted(out.iterdir())
@@ -440,3 +452,150 @@ def test_the_kernel_build_compiles_what_the_walks_controller_calls(monkeypatch):
                         lambda *a: called.append(1) or real(*a))
     build._compile_balance(ROOT / "scripts" / "params" / "sim3_zmp.yaml")
     assert called == [1]
+
+
+# --------------------------------------------------------------------------------------------- what the results say
+@pytest.fixture(scope="module")
+def stopped_run(tmp_path_factory) -> tuple[int, str, Path]:
+    """A 0.2 s --until run of Simulation 1 with the default figures: (exit status, console, output folder)."""
+    import contextlib
+    import io
+
+    out = tmp_path_factory.mktemp("stopped") / "out"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = main([str(SIM1), "--out", str(out), "--quiet", "--no-html", "--until", "0.2"])
+    return rc, buf.getvalue(), out
+
+
+def test_until_run_exits_0_and_says_it_stopped_as_requested(stopped_run):
+    rc, printed, out = stopped_run
+    assert rc == 0
+    assert "sim1 on pinocchio (welded feet): stopped at t = 0.200 s (requested)" in printed
+    assert json.loads((out / "summary.json").read_text())["status"] == "stopped"
+
+
+def test_default_figures_are_the_quick_set(stopped_run):
+    from humanoid_sim.outputs.plots.thesis import FIGURES, QUICK_FIGURES
+
+    _, printed, out = stopped_run
+    assert {p.stem for p in out.glob("*.png")} == set(QUICK_FIGURES)
+    assert set(QUICK_FIGURES) < set(FIGURES) and len(FIGURES) == 27
+    assert f"{len(QUICK_FIGURES)} figures (*.png, --figures all for the full set)" in printed
+
+
+def test_summary_records_the_provenance(stopped_run):
+    import humanoid_sim
+
+    s = json.loads((stopped_run[2] / "summary.json").read_text())["provenance"]
+    assert set(s) == {"version", "git_commit", "packages", "date", "command"}
+    assert s["version"] == humanoid_sim.__version__
+    assert s["git_commit"] is None or (isinstance(s["git_commit"], str) and len(s["git_commit"]) == 40)
+    assert set(s["packages"]) == {"pin", "mujoco", "numpy", "numba", "scipy"}
+    assert s["packages"]["numpy"] == np.__version__
+    assert all(v is None or isinstance(v, str) for v in s["packages"].values())
+    from datetime import datetime, timezone
+    date = datetime.fromisoformat(s["date"])
+    assert date.tzinfo is not None and date.utcoffset().total_seconds() == 0
+    assert abs((datetime.now(timezone.utc) - date).total_seconds()) < 3600
+    assert s["command"] == ["walk.py", str(SIM1), "--out", str(stopped_run[2]), "--quiet", "--no-html", "--until",
+                            "0.2"]
+
+
+def test_results_name_the_joints_and_actuators(stopped_run, hm):
+    from humanoid_sim.robot.actuators import T_NAMES
+    from humanoid_sim.robot.model import THETA_NAMES
+
+    r = load_results(stopped_run[2] / "results.npz")
+    assert list(r["theta_names"]) == list(THETA_NAMES) and len(THETA_NAMES) == r["theta"].shape[1]
+    assert list(r["T_names"]) == list(T_NAMES) and len(T_NAMES) == r["T"].shape[1]
+    assert len(r["q_names"]) == r["q"].shape[1] and len(r["v_names"]) == r["v"].shape[1]
+    j = hm.model.getJointId("theta9")
+    assert r["q_names"][hm.model.joints[j].idx_q] == "theta9" and r["v_names"][hm.model.joints[j].idx_v] == "theta9"
+    assert str(r["engine"]) == "pinocchio"
+
+
+def test_default_output_folder_is_keyed_by_scenario_and_engine():
+    from humanoid_sim.cli.walk import default_out
+
+    assert default_out("sim1_zmp", "pinocchio") == Path("results/sim1_zmp/pinocchio")
+    assert default_out("sim1_zmp", "mujoco") != default_out("sim1_zmp", "pinocchio")
+
+
+@pytest.mark.slow
+def test_two_engines_leave_two_output_folders_and_mujoco_speaks_of_real_contact(tmp_path, monkeypatch, capsys):
+    """sim1 without --out on the welds, then on MuJoCo (where it falls at once): both folders stay, each with its
+    engine's summary; the MuJoCo console names the ground figures and never the welds."""
+    monkeypatch.chdir(tmp_path)
+    assert main([str(SIM1), "--until", "0.1", "--quiet", "--no-html", "--figures", "none"]) == 0
+    weld = capsys.readouterr().out
+    assert main([str(SIM1), "--until", "0.1", "--quiet", "--no-html", "--figures", "none", "--engine", "mujoco"]) == 1
+    mj = capsys.readouterr().out
+    for engine in ("pinocchio", "mujoco"):
+        s = json.loads((tmp_path / "results" / "sim1" / engine / "summary.json").read_text())
+        assert s["engine"] == engine
+    assert "weld drift max" in weld and "welded feet" in weld   # the check below can fail
+    assert "weld" not in mj.lower() and "held" not in mj
+    assert "sim1 on mujoco (real contact): FELL -- " in mj
+    for words in ("on the ground: FELL at t = ", "foot slip max", "stance foot tilt max", "penetration max",
+                  "contact forces of real unilateral contact (mujoco)"):
+        assert words in mj, (words, mj)
+
+
+def test_figures_all_none_and_no_plots(tmp_path, monkeypatch):
+    import humanoid_sim.outputs.plots.thesis as thesis
+
+    drawn = []
+    monkeypatch.setattr(thesis, "plot_all", lambda *a, stems=None, **k: drawn.append(tuple(stems)) or [])
+    for flags in (["--figures", "all"], ["--figures", "none"], ["--no-plots"], []):
+        assert main([str(SIM1), "--out", str(tmp_path / "o"), "--quiet", "--no-html", "--until", "0.1"] + flags) == 0
+    assert drawn == [thesis.FIGURES, thesis.QUICK_FIGURES]
+    assert main([str(SIM1), "--out", str(tmp_path / "o"), "--no-plots", "--figures", "all"]) == 2
+
+
+def test_a_run_that_ends_before_its_first_step_draws_no_figures(tmp_path, capsys):
+    """All controller weights zero: the first stage fails, the log is empty; no figure is drawn, and the console
+    says why."""
+    def zero(doc: dict) -> None:
+        for k, v in doc["controller"].items():
+            if not k.startswith("Delta"):
+                doc["controller"][k] = [0] * len(v) if isinstance(v, list) else 0
+    scen = sim1_variant(tmp_path, "zero", zero)
+    out = tmp_path / "out"
+    assert main([str(scen), "--out", str(out), "--quiet", "--no-html", "--figures", "all"]) == 1
+    assert json.loads((out / "summary.json").read_text())["steps"] == 0
+    assert not list(out.glob("*.png"))
+    assert "no figures (the run ended before its first step: nothing to plot)" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_zmp_planning_says_how_long_it_took(tmp_path):
+    r = walk(str(ROOT / "scripts" / "params" / "sim3_fast_zmp.yaml"), "--out", str(tmp_path / "o"), "--until",
+             "0.05", "--figures", "none", "--no-html")
+    assert r.returncode == 0, r.stderr
+    assert "walk.py: planning the zmp_preview gait" in r.stderr
+    line = next(x for x in r.stderr.splitlines() if x.startswith("walk.py: planned the gait"))
+    assert float(line.rsplit(" in ", 1)[1].split(" s")[0]) > 0
+
+
+# --------------------------------------------------------------------------------------------- from Python
+def test_run_walk_says_when_it_compiles_and_records_the_call(monkeypatch, capsys):
+    import humanoid_sim as hs
+    from humanoid_sim import jit
+
+    monkeypatch.setattr(jit, "cache_present", lambda: False)   # as on the first run after an install
+    run = hs.run_walk("sim1", until=0.05)
+    assert "humanoid_sim: compiling the simulation kernel" in capsys.readouterr().err
+    assert run.summary["provenance"]["command"] == "python API: run_walk('sim1', engine='pinocchio', until=0.05)"
+    hs.run_walk("sim1", until=0.05, verbose=False)
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.slow
+def test_run_walk_says_it_plans_a_zmp_gait_and_how_long_it_took(capsys):
+    import humanoid_sim as hs
+
+    hs.run_walk("sim3_fast_zmp", until=0.05)
+    err = capsys.readouterr().err
+    assert "humanoid_sim: planning the zmp_preview gait" in err
+    assert "humanoid_sim: planned the gait and set up the walk in " in err

@@ -5,7 +5,6 @@ gait ending as physics says (a fall, named by foot and edge)."""
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import math
 from pathlib import Path
 
@@ -28,26 +27,20 @@ ROOT = Path(__file__).resolve().parents[2]
 SIM1 = ROOT / "scripts" / "params" / "sim1.yaml"
 
 
-def _example_standing_pd() -> type:
-    spec = importlib.util.spec_from_file_location("standing_pd", ROOT / "scripts" / "examples" / "standing_pd.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.StandingPD
-
-
-StandingPD = _example_standing_pd()
-
-
-class FlatFeetPD(StandingPD):
-    """The example's StandingPD (scripts/examples/standing_pd.py) with its gravity compensation carried by both
-    feet's main bodies (O_3, O_4), where the robot really stands.  The example takes the phase's welds (in RFFDSP the
-    right main body and the LEFT TOE body only): that needs an 11.5 N m left-toe torque, which a welded toe
-    resists and which, on real ground, flips the 0.13 kg toe body within 10 ms."""
+class FlatFeetPD:
+    """A standing PD that scales its gains by the joints' inertia: gravity compensation carried by both feet's main
+    bodies (O_3, O_4), where the robot really stands, plus M_j (w^2 (q0 - q) - 2 w v) on the 26 joints (M_j: the
+    joints' block of the mass matrix, every joint motion critically damped at w rad/s)."""
 
     name = "flat_feet_pd"
 
-    def __init__(self, w: float = StandingPD.w) -> None:
-        self.w = w
+    def __init__(self, w: float = 4.0) -> None:
+        self.w = w  # rad/s
+
+    def setup(self, ctx):
+        self.model, self.q_ref = ctx.hm.model, ctx.q0.copy()
+        self.data = self.model.createData()
+        self.fid = ctx.hm.frame_id
 
     def __call__(self, obs):
         model, data, q = self.model, self.data, obs.q

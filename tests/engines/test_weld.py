@@ -158,3 +158,42 @@ def test_enter_keeps_held_anchors_and_adds_new_ones(hm, setup) -> None:
     assert eng.anchors.placements["O_3"].isApprox(d.oMf[hm.model.getFrameId("O_3")], 1e-14)
     assert held.isApprox(record_anchors(hm.model, q0, PHASE.contacts).placements["O_4"])
     assert eng.phase is Phase.RFFDSP
+
+
+@pytest.mark.parametrize("compiled", [False, None])
+def test_a_control_period_calls_the_controller_once_per_period_and_holds_its_torque(hm, sim1, compiled) -> None:
+    """With ``control_period_s`` = 1 ms, a 10 ms step calls the controller 10 times, at the period's starts (stage
+    = the update's index), and every ode3 stage within a period integrates the torque of that period's call."""
+    eng = WeldEngine(hm, sim1, ReferenceTrajectory(sim1.path), compiled=compiled)
+    eng.control_period_s = 0.001
+    q0 = initial_state(hm, sim1)
+    eng.start(q0, PHASE)
+    calls, applied = [], []
+    forward = eng.dyn.forward_prepared
+
+    def spy(rows, tau):
+        applied.append(tau.copy())
+        return forward(rows, tau)
+
+    eng.dyn.forward_prepared = spy
+    rng = np.random.default_rng(1)
+
+    def control(obs):
+        calls.append((obs.t, obs.stage))
+        return Command(tau=np.r_[np.zeros(6), rng.normal(0.0, 1.0, 26)])
+
+    for n in range(2):
+        rec = eng.step(0.01 * n, 0.01, 0, control, NO_CHECKS)
+        assert rec.q is not None
+    assert len(calls) == 20
+    np.testing.assert_allclose([t for t, _ in calls], 0.001 * np.arange(20), atol=1e-15)
+    assert [s for _, s in calls] == list(range(10)) * 2
+    stages = len(eng.rk.tab.c)
+    assert len(applied) == 20 * stages
+    for i in range(20):   # the torque is held over the period: every stage of period i applies call i's torque
+        for j in range(1, stages):
+            np.testing.assert_array_equal(applied[i * stages + j], applied[i * stages])
+        if i:
+            assert not np.array_equal(applied[i * stages], applied[(i - 1) * stages])
+    with pytest.raises(Exception, match="whole number of control periods"):
+        eng.step(0.02, 0.0015, 0, control, NO_CHECKS)

@@ -46,7 +46,8 @@ def test_wrong_forms_are_named(out, message) -> None:
 def test_non_finite_torques_name_their_entries() -> None:
     tau = np.zeros(26)
     tau[3], tau[7] = np.nan, np.inf
-    with pytest.raises(ControllerError, match=r"non-finite torques \(entries \[9, 13\] of the v-ordered vector"):
+    with pytest.raises(ControllerError, match=r"non-finite torques: entry 9 = nan, entry 13 = inf "
+                                              r"\(entries \[9, 13\] of the v-ordered vector"):
         as_command(tau, NV, "c")   # joint entry j is v entry 6 + j
 
 
@@ -55,3 +56,21 @@ def test_a_command_with_thesis_torques_only_is_passed_on() -> None:
     assert as_command(cmd, NV, "c") is cmd and cmd.tau is None   # the engine maps T to tau
     with pytest.raises(ControllerError, match="thesis torques T that are not 26 finite numbers"):
         as_command(Command(tau=None, T=np.r_[np.ones(25), np.nan]), NV, "c")
+
+
+def test_non_finite_torques_and_wrong_shapes_name_the_joints(hm) -> None:
+    from humanoid_sim.interfaces.selector import CoordinateNames
+
+    names = CoordinateNames.of(hm)
+    tau = np.zeros(26)
+    i9 = int(hm.theta_v_idx[list(hm.spec.theta_order).index("theta9")]) - 6  # its row among the joint torques
+    tau[i9] = np.nan
+    with pytest.raises(ControllerError, match=r"non-finite torques: theta9 \(right shank, body 9\) = nan"):
+        as_command(tau, NV, "c", names)
+    with pytest.raises(ControllerError, match=r"shape \(25,\), expected \(26,\) joint torques in Pinocchio's joint "
+                                              r"order \(theta17l, theta16, .*, theta27\)"):
+        as_command(np.zeros(25), NV, "c", names)
+    f = np.zeros(NV)
+    f[2] = 5.0
+    with pytest.raises(ControllerError, match=r"base rows .*base linear velocity z"):
+        as_command(f, NV, "c", names)

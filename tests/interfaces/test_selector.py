@@ -75,3 +75,35 @@ def test_the_plans_delay_counts_late_touchdowns_only(sel):
             expected = max(expected, lateness)
         assert sel.plan_delay == pytest.approx(expected, abs=1e-12)
     assert expected == 0.2
+
+
+def test_messages_name_the_joint_and_its_body(hm):
+    """With the model's names, a diverging or non-finite component is named as its thesis angle and body (v index
+    21 is theta9, the right shank's angle, body 9), a base component by what it is."""
+    from humanoid_sim.interfaces.selector import CoordinateNames
+
+    sc = load_scenario(SIM1)
+    names = CoordinateNames.of(hm)
+    sel = PhaseSelector(ReferenceTrajectory(sc.path), SwitchThresholds(),
+                        SimulationSettings(fall_height_m=0.5, max_phase_overtime=2.0), np.array(sc.path.toe_R0), names)
+    i9 = int(hm.theta_v_idx[list(hm.spec.theta_order).index("theta9")])
+    assert names.v[i9] == "theta9 (right shank, body 9)" and names.v[0] == "base linear velocity x"
+    assert names.v[5] == "base angular velocity z" and names.q[6] == "base quaternion w"
+    q = np.zeros(hm.model.nq)
+    v = np.zeros(hm.model.nv)
+    v[i9] = -3.91e9
+    with pytest.raises(SimulationError, match=r"velocity component theta9 \(right shank, body 9\) is -3.91e\+09"):
+        sel.check_state(0.03, q, v, np.array([0.0, 0.0, 0.9]))
+    v[:] = 0.0
+    v[1] = np.nan
+    with pytest.raises(SimulationError, match=r"\(integration stage 2\) .*velocity component base linear velocity y "
+                                              r"is nan"):
+        sel.check_stage(0.03, q, v, 2)
+    a = np.zeros(hm.model.nv)
+    a[i9] = np.inf
+    with pytest.raises(SimulationError, match=r"acceleration component theta9 \(right shank, body 9\) is inf"):
+        sel.check_acceleration(0.03, a)
+    th = np.zeros(26)                       # the oracle engine's stage states are thesis angles
+    th[list(hm.spec.theta_order).index("theta17r")] = np.nan
+    with pytest.raises(SimulationError, match=r"position component theta17r \(lower trunk, body 17\) is nan"):
+        sel.check_stage(0.03, th, np.zeros(26), 0)

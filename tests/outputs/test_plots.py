@@ -31,8 +31,9 @@ EXPECTED_FILES = {
     "joints_hip_roll_yaw.png", "joints_waist.png", "joints_shoulders.png",                # Figs. 6.57-6.59
     "joints_neck.png",                                                                    # Fig. 6.60
     "task_hip.png", "task_toe_R.png", "task_toe_L.png",                                   # Figs. 6.61-6.63
-    "torques_T1-7.png", "torques_T9-15.png", "torques_T2-8.png", "torques_T10-16.png",    # Figs. 6.64-6.67
-    "torques_T17-19.png", "torques_T20-23.png", "torques_T24-26.png",                     # Figs. 6.68-6.70
+    "torques_right_toe_ankle.png", "torques_right_knee_hip.png",                          # Figs. 6.64-6.65
+    "torques_left_toe_ankle.png", "torques_left_knee_hip.png",                            # Figs. 6.66-6.67
+    "torques_waist.png", "torques_shoulders.png", "torques_neck.png",                     # Figs. 6.68-6.70
     "grf_force_R.png", "grf_force_L.png", "grf_moment_R.png", "grf_moment_L.png",         # Figs. 6.71-6.74
     "contact_world.png", "contact_audit.png",
 }
@@ -333,12 +334,116 @@ def test_contact_world_draws_the_sole_outlines(figures, run_npz: Path, hm: Human
 
 @pytest.mark.slow
 def test_plot_script_redraws_every_figure_walk_draws(tmp_path: Path) -> None:
-    """walk.py and plot.py draw one list of figures: plot.py on walk.py's results writes the same file names."""
+    """walk.py --figures all and plot.py draw one list of figures: plot.py on walk.py's results writes the same
+    file names; walk.py's default and plot.py --figures quick, the same few."""
     from humanoid_sim.cli.walk import main
 
-    walked, redrawn = tmp_path / "walk", tmp_path / "plot"
-    assert main([str(SIM1), "--out", str(walked), "--until", "1.0", "--no-html", "--quiet"]) == 0
+    walked, redrawn, quick = tmp_path / "walk", tmp_path / "plot", tmp_path / "quick"
+    assert main([str(SIM1), "--out", str(walked), "--until", "1.0", "--no-html", "--quiet", "--figures", "all"]) == 0
     assert _plot_script().main([str(walked / "results.npz"), "--out", str(redrawn)]) == 0
     by_walk = {p.name for p in walked.glob("*.png")}
     assert by_walk == EXPECTED_FILES
     assert {p.name for p in redrawn.glob("*.png")} == by_walk
+    assert main([str(SIM1), "--out", str(quick), "--until", "1.0", "--no-html", "--quiet"]) == 0
+    by_default = {p.name for p in quick.glob("*.png")}
+    assert _plot_script().main([str(quick / "results.npz"), "--out", str(redrawn / "q"), "--figures", "quick"]) == 0
+    assert {p.name for p in (redrawn / "q").glob("*.png")} == by_default < EXPECTED_FILES
+
+
+# ---------------------------------------------------------------------------------------------- what they say
+def _texts(fig) -> str:
+    """Every piece of text a figure shows: titles, axis labels, tick labels, legend entries."""
+    from matplotlib.text import Text
+
+    return "\n".join(t.get_text() for t in fig.findobj(Text))
+
+
+def test_figure_text_names_the_engines_kind_of_contact(run_npz: Path) -> None:
+    """On welds the phase timeline and the audit speak of held / welded feet; for a MuJoCo run, of the planned
+    support and real unilateral contact, and never of welds."""
+    from humanoid_sim.outputs.plots.thesis import run_figures
+
+    r = load_results(run_npz)
+    only = ["phases", "contact_audit", "contact_world"]
+    weld = run_figures(r, only=only, engine="pinocchio")
+    assert "which foot is held" in _texts(weld["phases"]) and "welded feet" in _texts(weld["contact_audit"])
+    assert "the weld pulls" in _texts(weld["contact_audit"])
+    mj = run_figures(r, only=only, engine="mujoco")
+    for stem, fig in mj.items():
+        text = _texts(fig)
+        assert "weld" not in text.lower() and "held" not in text, (stem, text)
+    assert "planned support" in _texts(mj["phases"])
+    assert "real unilateral contact (mujoco)" in _texts(mj["contact_audit"])
+
+
+def test_the_engine_comes_from_results_npz(run_npz: Path) -> None:
+    from humanoid_sim.outputs.plots.thesis import run_figures
+
+    r = {**load_results(run_npz), "engine": np.array("mujoco")}
+    assert "planned support" in _texts(run_figures(r, only=["phases"])["phases"])
+
+
+def test_torque_figures_are_named_by_the_joints_they_drive() -> None:
+    """Each torque figure's name says the side and joints whose actuators it holds (not a T-number range that
+    hides the odd/even split of eq. 4.69)."""
+    from humanoid_sim.outputs.plots.thesis import TORQUE_GROUPS
+
+    for stem, title, names in TORQUE_GROUPS:
+        assert stem == "torques_" + title.replace(" and ", "_").replace(" ", "_"), stem
+        assert not re.search(r"T\d", stem)
+        side = {"right": 1, "left": 0}.get(title.split()[0])
+        if side is not None and int(names[0][1:]) <= 16:   # legs: right odd, left even (eq. 4.69)
+            assert all(int(n[1:]) % 2 == side for n in names), (stem, names)
+
+
+def test_every_figure_is_listed_in_the_docs() -> None:
+    from humanoid_sim.outputs.plots.thesis import FIGURES, QUICK_FIGURES
+
+    doc = (REPO / "docs" / "outputs.md").read_text()
+    for stem in FIGURES:
+        assert f"`{stem}.png`" in doc, stem
+    assert set(QUICK_FIGURES) <= set(FIGURES)
+
+
+def test_plot_all_draws_only_the_figures_asked_for(run_npz: Path, tmp_path: Path) -> None:
+    from humanoid_sim.outputs.plots.thesis import QUICK_FIGURES, PlotError, plot_all
+
+    paths = plot_all(run_npz, tmp_path, stems=QUICK_FIGURES, workers=1)
+    assert [p.stem for p in paths] == [s for s in QUICK_FIGURES]
+    assert {p.name for p in tmp_path.glob("*.png")} == {f"{s}.png" for s in QUICK_FIGURES}
+    with pytest.raises(PlotError, match="unknown figures"):
+        plot_all(run_npz, tmp_path, stems=["torques_T1-7"])
+
+
+def test_a_run_without_steps_writes_no_figures(hm: HumanoidModel, tmp_path: Path) -> None:
+    """Run.write of a walk that ended before its first step: results.npz and summary.json, no figure, no
+    playback, even when asked for all."""
+    import humanoid_sim as hs
+
+    run = hs.run_walk("sim1", until=0.2, verbose=False)
+    run.result.log = type(run.result.log).from_columns({k: v[:0] for k, v in run.result.log.arrays().items()})
+    written = run.write(tmp_path / "out", figures="all", playback=True)
+    assert [p.name for p in written] == ["results.npz", "summary.json"]
+    assert not list((tmp_path / "out").glob("*.png"))
+
+
+def test_the_ground_view_of_a_long_walk_is_a_window_at_its_smallest_zmp_margin() -> None:
+    from types import SimpleNamespace
+
+    from humanoid_sim.outputs.plots.ground import WINDOW_M, ground_window
+
+    def walk(length: float) -> SimpleNamespace:
+        n = 50
+        y = np.linspace(0.0, length, n)
+        sole = np.array([[-0.05, -0.1], [0.05, -0.1], [0.05, 0.1], [-0.05, 0.1]])
+        polygons = [[sole + [0.1, yk], sole + [-0.1, yk]] for yk in y]
+        margin = np.full(n, 0.03)
+        margin[37] = 0.004                                     # the step a designer should look at
+        return SimpleNamespace(polygons=polygons, zmp=np.stack([np.zeros(n), y], axis=1), zmp_margin=margin,
+                               t=np.arange(n) * 0.1)
+
+    assert ground_window(walk(0.5 * WINDOW_M)) is None
+    (x0, x1), (y0, y1), t = ground_window(walk(12.0))
+    y37 = np.linspace(0.0, 12.0, 50)[37]
+    assert (x1 - x0, y1 - y0) == (WINDOW_M, WINDOW_M) and t == pytest.approx(3.7)
+    assert (x0 + x1) / 2 == pytest.approx(0.0) and (y0 + y1) / 2 == pytest.approx(y37)

@@ -143,6 +143,30 @@ def _recorded_static_poses(window) -> tuple[dict[str, np.ndarray], list[tuple[st
     return transforms, objects
 
 
+def test_the_robot_sides_have_the_feet_colours_of_every_figure(run, hm: HumanoidModel) -> None:
+    """Every robot part named right_... / left_... is drawn in that foot's colour of outputs.colours (the colour of
+    the right / left foot in every 2-D figure, and of the toe paths, arrows and soles here); the rest in the body
+    colour; and the two side colours are none of the phase colours."""
+    from humanoid_sim.outputs.colours import BODY_COLOUR, FOOT_COLOURS, PHASE_COLOURS, hex_int
+
+    npz, traj = run
+    window, _ = record(npz, hm, traj)
+    _, objects = _recorded_static_poses(window)
+    robot = {path.rsplit("/", 1)[-1]: obj for path, obj in objects if "/robot/" in path}
+    sides = {"R": 0, "L": 0}
+    for name, obj in robot.items():
+        colour = obj["materials"][0]["color"]
+        side = "R" if name.startswith("right_") else "L" if name.startswith("left_") else None
+        assert colour == hex_int(FOOT_COLOURS[side] if side else BODY_COLOUR), name
+        if side:
+            sides[side] += 1
+    assert sides == {"R": 5, "L": 5}   # thigh, shank, foot, toe, arm
+    for foot in ("R", "L"):
+        paths = [obj for path, obj in objects if path.endswith(f"/reference/toe_{foot}")]
+        assert paths and paths[0]["materials"][0]["color"] == hex_int(FOOT_COLOURS[foot])
+    assert not set(FOOT_COLOURS.values()) & set(PHASE_COLOURS.values())
+
+
 def test_no_text_lies_at_the_origin(walks, hm: HumanoidModel) -> None:
     """Every text object of the recording is a phase label: upright, 1.5 m or more above the ground in the frame it
     hangs from, and inside a node the animation shows and hides (so an unused label cannot lie on the ground at the
@@ -274,9 +298,74 @@ def test_playback_is_self_contained_and_small(run, hm: HumanoidModel, tmp_path: 
     np.savez(long_npz, **long)
     html = write_playback(long_npz, tmp_path / "playback.html", hm=hm)
     size = html.stat().st_size
-    assert size < 20e6, f"{size / 1e6:.1f} MB"
+    assert size < 2e6, f"{size / 1e6:.1f} MB"
     text = html.read_text(encoding="utf-8")
     assert not re.search(r"<(script|link|img)[^>]+(src|href)\s*=", text), "the recording loads an external file"
+
+
+def test_playback_rate_keeps_long_walks_to_the_frame_bound() -> None:
+    from humanoid_sim.outputs.viewer.recording import MAX_FRAMES, playback_fps
+
+    assert playback_fps(7.0) == 30.0                            # a thesis walk: the display rate
+    assert playback_fps((MAX_FRAMES - 1) / 30.0) == 30.0        # exactly the bound
+    fps = playback_fps(63.0)
+    assert fps == pytest.approx((MAX_FRAMES - 1) / 63.0) and 15.0 < fps < 16.0
+    assert int(np.ceil(63.0 * fps - 1e-9)) + 1 <= MAX_FRAMES    # build_frames' count at that rate
+    with pytest.raises(Exception, match="fps must be positive"):
+        playback_fps(1.0, 0.0)
+
+
+def test_pruned_keys_give_every_frame_its_value() -> None:
+    """Keys whose value equals both neighbours' go; linear interpolation (vectors) and holding (booleans) of the
+    keys left give back every frame's value exactly; the first and last keys stay."""
+    from meshcat.animation import Animation, AnimationClip, AnimationTrack
+
+    from humanoid_sim.outputs.viewer.recording import prune_keys
+
+    rng = np.random.default_rng(3)
+    n = 200
+    pos = np.repeat(rng.normal(size=(8, 3)), 25, axis=0)        # at rest for 25 frames at a time
+    pos[100:110] = rng.normal(size=(10, 3))                     # then moving
+    vis = (np.arange(n) // 37) % 2 == 0
+    full = {"position": [list(p) for p in pos], "visible": [bool(v) for v in vis]}
+    clip = AnimationClip(tracks={k: AnimationTrack(k, "vector3" if k == "position" else "boolean", list(range(n)),
+                                                   list(v)) for k, v in full.items()})
+    anim = Animation(clips={"node": clip})
+    dropped = prune_keys(anim)
+    assert dropped > 150
+    t_pos, t_vis = clip.tracks["position"], clip.tracks["visible"]
+    for track in (t_pos, t_vis):
+        assert track.frames[0] == 0 and track.frames[-1] == n - 1
+    keys = np.array(t_pos.frames)
+    vals = np.array(t_pos.values)
+    again = np.column_stack([np.interp(np.arange(n), keys, vals[:, j]) for j in range(3)])
+    np.testing.assert_array_equal(again, pos)                   # between equal keys the interpolation is exact
+    held = np.array(t_vis.values)[np.searchsorted(t_vis.frames, np.arange(n), side="right") - 1]
+    np.testing.assert_array_equal(held, vis)
+    assert len(t_vis.frames) == 2 * (n // 37 + 1)               # a change of visibility keeps two keys
+
+
+@pytest.mark.slow
+def test_a_long_walks_playback_stays_under_5_mb(walks, hm: HumanoidModel, tmp_path: Path) -> None:
+    """A 63 s walk (Simulation 1's whole walk repeated, its phases and all, every step at h = 0.01 s): at most
+    MAX_FRAMES frames, under 5 MB."""
+    from humanoid_sim.outputs.viewer.recording import MAX_FRAMES, _fps
+
+    npz, _ = walks["sim1"]
+    r = load_results(npz)
+    n = int(round(63.0 / 0.01)) + 1
+    rows = np.arange(n) % len(r["t"])
+    long = {k: (v[rows] if k not in ("phase_names", "signal_units") else v) for k, v in r.items()}
+    long["t"] = np.arange(n) * 0.01
+    long_npz = tmp_path / "long" / "results.npz"
+    long_npz.parent.mkdir()
+    np.savez(long_npz, **long)
+    window, fr = record(long_npz, hm)
+    assert len(fr) <= MAX_FRAMES and _fps(fr) < 16.0
+    assert len(set(np.asarray(r["phase"]).tolist())) > 5         # the walk's many phases, each with its label
+    html = write_playback(long_npz, tmp_path / "playback.html", hm=hm)
+    size = html.stat().st_size
+    assert size < 5e6, f"{size / 1e6:.2f} MB"
 
 
 def _chromium(url: str | Path, tmp_path: Path, budget_ms: int = 1500) -> tuple[np.ndarray, list[str]]:
@@ -316,9 +405,22 @@ def _pixels_of(img: np.ndarray, rgb: tuple[float, float, float]) -> int:
 
 
 def _robot_colours() -> dict[str, tuple[float, ...]]:
-    root = ET.parse(REPO / "models" / "thesis_humanoid.urdf").getroot()
-    return {m.get("name"): tuple(float(x) for x in m.find("color").get("rgba").split()[:3])
-            for m in root.findall("./material")}
+    """RGB in [0, 1] of the robot's right and left side: the feet's colours of every figure."""
+    from humanoid_sim.outputs.colours import FOOT_COLOURS
+
+    return {side: tuple(int(FOOT_COLOURS[f][i:i + 2], 16) / 255 for i in (1, 3, 5))
+            for side, f in (("right", "R"), ("left", "L"))}
+
+
+def _thick(mask: np.ndarray, steps: int = 2) -> np.ndarray:
+    """``mask`` eroded by a 3 x 3 square ``steps`` times: the robot's limbs stay, the 1-2 px lines drawn in the same
+    side colours (toe paths, sole outlines) go."""
+    m = mask.copy()
+    for _ in range(steps):
+        p = np.pad(m, 1)
+        m = np.logical_and.reduce([p[1 + di:p.shape[0] - 1 + di, 1 + dj:p.shape[1] - 1 + dj]
+                                   for di in (-1, 0, 1) for dj in (-1, 0, 1)])
+    return m
 
 
 def _bbox(mask: np.ndarray) -> tuple[int, int, int, int]:
@@ -359,7 +461,7 @@ def test_camera_keeps_the_robot_and_the_label_in_the_frame(walks, hm: HumanoidMo
         robot = _mask_of(img, colours["right"]) | _mask_of(img, colours["left"])
         # 1000 pixels: the robot's two coloured sides cover several thousand at this distance
         assert robot.sum() > 1000, f"{name} t = {t}: the robot is not on screen"
-        top, bottom, left, right = _bbox(robot)
+        top, bottom, left, right = _bbox(_thick(robot))   # the body, not the toe paths in its side's colour
         assert top > 5 and left > 5 and bottom < h - 6 and right < w - 6, (name, t, (top, bottom, left, right))
         k = int(r["phase"][np.argmin(np.abs(r["t"] - t))])
         rgb = np.array(THESIS_PHASE_RGB[str(r["phase_names"][k])])

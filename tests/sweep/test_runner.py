@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SWEEP_PY = ROOT / "scripts" / "sweep.py"
 SIM3 = yaml.safe_load((ROOT / "scripts" / "params" / "sim3.yaml").read_text())
 ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
-WALL = ("wall_time_s", "real_time_factor")   # the only summary numbers that may differ between two runs
+WALL = ("wall_time_s", "real_time_factor", "provenance")   # what may differ between two runs: when, how long
 HIP_WEIGHTS = "controller.Wp_fa_LFFSSP, controller.Wv_fa_LFFSSP, controller.Wor_fa_LFFSSP"
 
 

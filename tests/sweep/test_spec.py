@@ -250,7 +250,7 @@ def test_an_unreadable_table_exits_2_and_stays_untouched(tmp_path, capsys, no_cl
 
 
 # --------------------------------------------------------------------------------------------- speed_step.yaml
-def test_speed_step_is_4_speeds_by_4_step_lengths_by_2_gaits_of_sim3():
+def test_speed_step_is_4_step_times_by_4_step_lengths_by_2_gaits_of_sim3():
     spec = load_sweep(SPEED_STEP)
     assert spec.base_path.resolve() == SIM3.resolve()
     walks = spec.expand()
@@ -260,6 +260,54 @@ def test_speed_step_is_4_speeds_by_4_step_lengths_by_2_gaits_of_sim3():
     doc = copy.deepcopy(base.doc)
     assert doc.pop("gait") == {"hip_reference": "thesis"}    # the default, written out
     assert scenario_hash(doc) == scenario_hash(BASE)         # factor 1 x 1 with the thesis gait is sim 3 itself
+    assert [a.column for a in spec.grid][0] == "path.t_SSP:scale"
+    t_ssp = sorted({tuple(w.doc["path"]["t_SSP"]) for w in walks})
+    assert [t[0] for t in t_ssp] == pytest.approx([0.56, 0.63, 0.7, 0.84], abs=1e-12)
+    assert all(w.doc["path"]["PTR"] == BASE["path"]["PTR"] for w in walks)   # the double support scales alike
+    assert all(w.doc["path"]["Vhip"] == BASE["path"]["Vhip"] for w in walks)
+
+
+def test_every_walk_of_speed_step_is_a_different_walk():
+    """No two walks of the shipped sweep have equal parsed scenarios or planned references (chapter 3's, and for
+    the zmp gait everything the ZMP plan takes), and no axis is reported as changing nothing."""
+    from humanoid_sim.sweep.checks import noop_axes, same_walk_pairs, walk_print
+
+    spec = load_sweep(SPEED_STEP)
+    walks = spec.expand()
+    prints = [walk_print(w.doc) for w in walks]
+    assert same_walk_pairs(walks, prints) == []
+    assert noop_axes(spec, walks, prints) == []
+    # pairwise, the planned references differ by far more than the tolerance (at least 1 cm or 10 ms somewhere)
+    gap = min(float(np.max(np.abs(a.samples - b.samples))) for i, a in enumerate(prints) for b in prints[i + 1:]
+              if a.samples.shape == b.samples.shape)
+    assert gap > 0.01
+
+
+def test_an_axis_that_changes_no_zmp_walk_is_reported(tmp_path, capsys, no_cluster):
+    """The hip speed Vhip moves only chapter 3's hip, which the zmp plan replaces: swept with both gaits, it changes
+    every thesis walk and no zmp walk.  The check names the axis and the zmp groups, and humanoid-sweep prints it
+    before any walk runs."""
+    from humanoid_sim.sweep.checks import noop_axes, same_walk_pairs
+
+    body = {"base": str(SIM3), "grid": {"path.Vhip": {"scale": [0.8, 1.2]}, "path.SW": [0.3, 0.32],
+                                        "gait.hip_reference": ["thesis", "zmp_preview"]}}
+    path = sweep_file(tmp_path, body)
+    spec = load_sweep(path)
+    walks = spec.expand()
+    msgs = noop_axes(spec, walks)
+    assert len(msgs) == 1
+    assert msgs[0].startswith("path.Vhip:scale changes no walk of 2 groups")
+    assert "[path.SW=0.3, gait.hip_reference=zmp_preview]" in msgs[0]
+    assert "[path.SW=0.32, gait.hip_reference=zmp_preview]" in msgs[0]
+    assert "thesis" not in msgs[0].split(":", 2)[2].replace("gait.hip_reference=zmp_preview", "")
+    pairs = same_walk_pairs(walks)
+    by_index = {w.index: w.params for w in walks}
+    assert pairs and all(by_index[i]["gait.hip_reference"] == by_index[j]["gait.hip_reference"] == "zmp_preview"
+                         and by_index[i]["path.SW"] == by_index[j]["path.SW"] for i, j in pairs)
+    # the command warns before it reaches for a cluster (refused here: nothing runs)
+    assert cli.main([str(path), "--out", str(tmp_path / "out"), "--quiet", "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert "humanoid-sweep: warning: path.Vhip:scale changes no walk of 2 groups" in err
 
 
 def _gait_axis_values() -> set:

@@ -46,7 +46,7 @@ def test_flattening_keeps_every_summary_number(short_walk):
     cols = flatten_summary(summary)
     expected = {}
     for k, v in summary.items():
-        if k in ("scenario", "engine", "completed", "status", "reason", "phase_log"):
+        if k in ("scenario", "engine", "completed", "status", "reason", "phase_log", "provenance"):
             continue
         if k == "contact":
             v = {ck: cv for ck, cv in v.items() if ck != "per_phase"}
@@ -72,8 +72,10 @@ def test_walk_row_status_of_a_walk_cut_at_its_stop_time(short_walk):
     assert row["completed"] is True and row["all_phases_completed"] is False   # cut short on purpose: completed
     assert row["failure_kind"] is None and row["failure_time_s"] is None
     assert row["task_wall_time_s"] > 0 and row["worker"].endswith(f":{__import__('os').getpid()}")
-    assert {k: v for k, v in out["summary"].items() if k not in ("wall_time_s", "real_time_factor")} == \
-           {k: v for k, v in summary.items() if k not in ("wall_time_s", "real_time_factor")}  # deterministic
+    # deterministic, except when and how long it ran (the run's provenance records its date)
+    when = ("wall_time_s", "real_time_factor", "provenance")
+    assert {k: v for k, v in out["summary"].items() if k not in when} == \
+           {k: v for k, v in summary.items() if k not in when}
 
 
 def test_walk_row_of_failures():
@@ -239,5 +241,5 @@ def test_the_thesis_engine_runs_the_walk(hm):
     res = sim.run()
     direct = summarize_with_audit(res, sc, "thesis", hm, [p.name for p in sim.traj.phases])
     assert s["engine"] == "thesis" and s["steps"] == 2 and "compiled_stages" not in s
-    wall = ("wall_time_s", "real_time_factor", "torque_rms_Nm")
+    wall = ("wall_time_s", "real_time_factor", "torque_rms_Nm", "provenance")
     assert {k: v for k, v in s.items() if k not in wall} == {k: v for k, v in direct.items() if k not in wall}

@@ -117,6 +117,8 @@ class BalanceController:
     """See the module docstring.  ``settings``: :class:`BalanceSettings` (None = defaults)."""
 
     name = "balance"
+    control_period_s: float | None = None
+    """None: a feedthrough of the state, evaluated at every integration stage (the engine's own rate)."""
 
     def __init__(self, settings: BalanceSettings | None = None, compiled: bool = True) -> None:
         """``compiled``: when numba is installed, build the QP and read its solution in two compiled calls

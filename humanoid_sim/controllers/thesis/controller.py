@@ -52,6 +52,8 @@ class ThesisController:
     """
 
     name = "thesis"
+    control_period_s: float | None = None
+    """None: a feedthrough of the state, evaluated at every integration stage (the engine's own rate)."""
 
     def __init__(self, compiled: bool | None = None) -> None:
         self.compiled = compiled

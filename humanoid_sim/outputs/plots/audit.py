@@ -1,8 +1,10 @@
 """The contact-feasibility figure ``contact_audit.png`` (matplotlib, Agg backend), one of ``plots.FIGURES``.
 
-Four panels against time, phases shaded in the thesis colours: normal force per foot (N, world z; below zero = the
-weld pulls), CoP margin per foot (mm, signed distance to the edge of the touching sole, > 0 inside), friction ratio
-|f_t|/f_n per foot against mu, and the whole-body ZMP margin to the support polygon (mm, > 0 inside).  Margins use a
+Four panels against time, phases shaded in the thesis colours: normal force per foot (N, world z; on the welded
+engines below zero = the weld pulls, on real contact never below zero), CoP margin per foot (mm, signed distance to
+the edge of the touching sole, > 0 inside), friction ratio |f_t|/f_n per foot against mu, and the whole-body ZMP
+margin to the support polygon (mm, > 0 inside).  The title and the normal-force panel name the engine's kind of
+contact (``engine`` argument: welded feet, or real unilateral contact).  Margins use a
 symmetric-log axis: touchdown transients reach metres while the interesting band is millimetres.  Colours and the
 title/legend band are those of every figure (:mod:`humanoid_sim.outputs.plots.thesis`,
 :mod:`humanoid_sim.outputs.colours`).  Lines carry
@@ -27,15 +29,17 @@ from humanoid_sim.outputs.colours import (
     REFERENCE_COLOUR,
     ZMP_COLOUR,
 )
-from humanoid_sim.outputs.plots.common import HEADER_IN, _handle, _header, shade_phases
+from humanoid_sim.outputs.plots.common import HEADER_IN, _handle, _header, real_contact, shade_phases
 
 PHASE_SHADES = PHASE_COLOURS
 """Former name of :data:`humanoid_sim.outputs.colours.PHASE_COLOURS`."""
 MARGIN_LINTHRESH_MM = 10.0  # linear band of the symlog margin axes: the sole is 90 mm wide
 
 
-def contact_audit_figure(report: AuditReport, title: str = ""):
-    """The audit figure as a bare :class:`matplotlib.figure.Figure`."""
+def contact_audit_figure(report: AuditReport, title: str = "", engine: str | None = None):
+    """The audit figure as a bare :class:`matplotlib.figure.Figure`.  ``engine``: the run's engine; on real contact
+    (:func:`.common.real_contact`) the figure speaks of the engine's contact forces, otherwise of the welded feet."""
+    real = real_contact(engine)
     from matplotlib.figure import Figure
 
     t = report.t
@@ -57,7 +61,8 @@ def contact_audit_figure(report: AuditReport, title: str = ""):
     line.set_gid("audit:zmp_margin:")
     axes[0].axhline(0.0, color=REFERENCE_COLOUR, lw=0.6)
     axes[0].set_ylabel("normal force f_z [N]")
-    axes[0].set_title("normal force (< 0: the weld pulls on the ground)", fontsize=9)
+    axes[0].set_title(f"normal force of real unilateral contact ({engine}; pushes only: >= 0)" if real else
+                      "normal force (< 0: the weld pulls on the ground)", fontsize=9)
     for ax, what in ((axes[1], "CoP margin to the sole edge"), (axes[3], "ZMP margin to the support polygon")):
         ax.axhline(0.0, color=REFERENCE_COLOUR, lw=0.6)
         ax.set_yscale("symlog", linthresh=MARGIN_LINTHRESH_MM)
@@ -74,8 +79,12 @@ def contact_audit_figure(report: AuditReport, title: str = ""):
     axes[-1].set_xlabel("t [s]")
     s = report.summary()
     frac = s["infeasible_fraction"]
-    head = ((title + ": " if title else "") + "contact feasibility of the welded feet -- "
-            + ("no contact steps" if frac is None else f"{100 * frac:.0f} % of contact steps infeasible"))
+    if real:
+        head = ((title + ": " if title else "") + f"contact forces of real unilateral contact ({engine}) -- "
+                + ("no contact steps" if frac is None else f"{100 * frac:.0f} % of contact steps fail a check"))
+    else:
+        head = ((title + ": " if title else "") + "contact feasibility of the welded feet -- "
+                + ("no contact steps" if frac is None else f"{100 * frac:.0f} % of contact steps infeasible"))
     handles = ([_handle(FOOT_NAMES[f], color=FOOT_COLOURS[f], marker=".", ms=4) for f in FEET]
                + [_handle("whole-body ZMP", color=ZMP_COLOUR), _handle(f"mu = {report.mu:g}", color=LIMIT_COLOUR,
                                                                        lw=0.8, ls="--")])
@@ -83,10 +92,11 @@ def contact_audit_figure(report: AuditReport, title: str = ""):
     return fig
 
 
-def plot_contact_audit(report: AuditReport, path: str | Path, title: str = "", dpi: int = 100) -> Path:
+def plot_contact_audit(report: AuditReport, path: str | Path, title: str = "", dpi: int = 100,
+                       engine: str | None = None) -> Path:
     """Write the audit figure to ``path`` (PNG, atomically) and return the path."""
     path = Path(path)
-    fig = contact_audit_figure(report, title)
+    fig = contact_audit_figure(report, title, engine)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     atomic_write_bytes(path, buf.getvalue())

@@ -16,6 +16,24 @@ from humanoid_sim.outputs.colours import PHASE_COLOURS, REFERENCE_COLOUR  # noqa
 
 REFERENCE_STYLE = dict(color=REFERENCE_COLOUR, ls="--", lw=1.0)
 
+REAL_CONTACT_ENGINES = ("mujoco",)
+"""Engines with real, unilateral ground contact; the others (``pinocchio``, ``thesis``) weld the supporting feet."""
+
+
+def real_contact(engine: str | None) -> bool:
+    """Whether a run's engine (summary.json's ``engine``, results.npz's ``engine``) has real, unilateral ground
+    contact, so that its figures speak of contact forces and the planned support rather than of welds.  None (an
+    unknown engine) reads as the default, welded one."""
+    return engine in REAL_CONTACT_ENGINES
+
+
+def engine_of(r: dict[str, np.ndarray], engine: str | None = None) -> str | None:
+    """The engine of a run: ``engine`` when given, else the ``engine`` entry of its results.npz (None without)."""
+    if engine is not None:
+        return engine
+    e = r.get("engine")
+    return None if e is None else str(np.asarray(e))
+
 
 def _save(fig: Figure, path: Path, dpi: int = 120) -> Path:
     fig.savefig(path, dpi=dpi)
@@ -71,3 +89,11 @@ def shade_phases(ax, t: np.ndarray, phase: np.ndarray, names: list[str], alpha: 
 
 def _shade(ax, r: dict[str, np.ndarray]) -> None:
     shade_phases(ax, r["t"], r["phase"], [str(x) for x in r["phase_names"]])
+
+
+def _line(ax, r: dict[str, np.ndarray], signal: str, index: tuple[int, ...], **kw):
+    """Plot ``r[signal][:, *index]`` against t, tagged with its gid."""
+    y = r[signal][(slice(None),) + index]
+    (line,) = ax.plot(r["t"], y, **kw)
+    line.set_gid(f"{signal}:{','.join(str(i) for i in index)}")
+    return line

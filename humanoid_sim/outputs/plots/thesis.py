@@ -1,13 +1,16 @@
-"""PNG figures of a run (matplotlib, Agg backend): :data:`FIGURES`, the one list ``walk.py`` and ``plot.py`` draw.
+"""PNG figures of a run (matplotlib, Agg backend): :data:`FIGURES`, the full list ``walk.py`` and ``plot.py`` draw
+(``walk.py`` draws :data:`QUICK_FIGURES` unless asked for all; :data:`FIGURE_SETS`).
 
 - ``reference_iso/xy/xz.png`` (Figs. 6.51-6.53, :func:`plot_reference`): hip CoM path coloured by phase, the toe
   points' paths in their foot's colour, waypoints marked.  World frame, metres.
-- ``phases.png``: the phase timeline (phase index over time, which foot carries a constraint).
+- ``phases.png``: the phase timeline (phase index over time, which foot carries a weld; on real contact, which
+  foot the phase plans as support).
 - ``joints_*.png`` (Figs. 6.54-6.60): the 26 thesis joint angles in the thesis's seven groups, rad, each named by its
   joint (``right ankle roll theta9``: rotation about the body x axis, pitch y, yaw z; body axes x forward, y left).
 - ``task_hip.png``, ``task_toe_R.png``, ``task_toe_L.png`` (Figs. 6.61-6.63): Body-17 CoM (and yaw) and
   the toe points P_tpR / P_tpL against their references, world frame.
-- ``torques_*.png`` (Figs. 6.64-6.70): actuator torques T (after saturation) and the computed-torque
+- ``torques_<group>.png`` (Figs. 6.64-6.70, named by the joints they drive: ``torques_right_toe_ankle`` holds T1, T3,
+  T5, T7): actuator torques T (after saturation) and the computed-torque
   command T_cmd, with the saturation limits +-T_max; components in the frame of the higher body (eq. 4.69).
 - ``grf_force_R/L.png``, ``grf_moment_R/L.png`` (Figs. 6.71-6.74): ground force F_0,k and moment M_0,k
   (about the CoM of body k) on bodies 1, 3 (right foot) and 2, 4 (left foot), resolved in body frame k.
@@ -18,7 +21,7 @@
 
 Style (:mod:`humanoid_sim.outputs.colours`): phases shaded in the thesis colours; one colour per foot in every figure
 (right
-green, left black); ZMP orange; references grey dashed; units in square brackets.  Each figure has its title on the
+green, left purple); ZMP orange; references grey dashed; units in square brackets.  Each figure has its title on the
 first line and its legends on the second, above the plots.  :func:`run_figures` returns the figures without saving;
 each data line carries a ``gid`` ``"<signal>:<index>"`` naming the results.npz column it draws (``"theta:3"`` is
 ``r["theta"][:, 3]``, ``"body_force:1,2"`` is ``r["body_force"][:, 1, 2]``, ``"hip_yaw:"`` is ``r["hip_yaw"]``);
@@ -44,24 +47,26 @@ from humanoid_sim.outputs.colours import (  # noqa: E402
     FOOT_COLOURS,
     FOOT_NAMES,
     LIMIT_COLOUR,
-    OUTSIDE_COLOUR,
     PHASE_COLOURS,
     REFERENCE_COLOUR,
     SIGNAL_COLOUR,
     WAYPOINT_COLOUR,
-    ZMP_COLOUR,
 )
 from humanoid_sim.outputs.plots.common import (  # noqa: E402,F401
     HEADER_IN,
     REFERENCE_STYLE,
     _handle,
     _header,
+    _line,
     _phase_runs,
     _phases_present,
     _save,
     _shade,
+    engine_of,
+    real_contact,
     shade_phases,
 )
+from humanoid_sim.outputs.plots.ground import contact_world_figure  # noqa: E402
 
 if TYPE_CHECKING:  # pragma: no cover
     from humanoid_sim.analysis.audit import AuditReport
@@ -188,18 +193,20 @@ JOINT_GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("joints_neck", "neck", ("theta25", "theta26", "theta27")),
 )
 LEGACY_STEMS = ("joints_theta3-6", "joints_theta7-10", "joints_theta11-14", "joints_theta15-17l",
-                "joints_theta18-20", "joints_theta21-24", "joints_theta25-27")
+                "joints_theta18-20", "joints_theta21-24", "joints_theta25-27",
+                "torques_T1-7", "torques_T9-15", "torques_T2-8", "torques_T10-16", "torques_T17-19",
+                "torques_T20-23", "torques_T24-26")
 """Figure names that earlier versions wrote and this one does not (``walk.py`` removes them from its output
 folder so that they do not pass for a new run's)."""
 #: thesis Figs. 6.64-6.70: actuator-torque groups (file stem, title, torque names)
 TORQUE_GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
-    ("torques_T1-7", "right toe and ankle", ("T1", "T3", "T5", "T7")),
-    ("torques_T9-15", "right knee and hip", ("T9", "T11", "T13", "T15")),
-    ("torques_T2-8", "left toe and ankle", ("T2", "T4", "T6", "T8")),
-    ("torques_T10-16", "left knee and hip", ("T10", "T12", "T14", "T16")),
-    ("torques_T17-19", "waist", ("T17", "T18", "T19")),
-    ("torques_T20-23", "shoulders", ("T20", "T21", "T22", "T23")),
-    ("torques_T24-26", "neck", ("T24", "T25", "T26")),
+    ("torques_right_toe_ankle", "right toe and ankle", ("T1", "T3", "T5", "T7")),
+    ("torques_right_knee_hip", "right knee and hip", ("T9", "T11", "T13", "T15")),
+    ("torques_left_toe_ankle", "left toe and ankle", ("T2", "T4", "T6", "T8")),
+    ("torques_left_knee_hip", "left knee and hip", ("T10", "T12", "T14", "T16")),
+    ("torques_waist", "waist", ("T17", "T18", "T19")),
+    ("torques_shoulders", "shoulders", ("T20", "T21", "T22", "T23")),
+    ("torques_neck", "neck", ("T24", "T25", "T26")),
 )
 #: thesis Figs. 6.71-6.74: (file stem, signal, title, foot, [(body, row of body_force/body_moment)])
 GRF_GROUPS: tuple[tuple[str, str, str, str, tuple[tuple[int, int], ...]], ...] = (
@@ -217,8 +224,14 @@ TIME_STEMS: tuple[str, ...] = (("phases",) + tuple(g[0] for g in JOINT_GROUPS)
                                + ("contact_world",))
 """The time-series figures of :func:`run_figures`, in thesis section 6.2 order."""
 FIGURES: tuple[str, ...] = REFERENCE_STEMS + TIME_STEMS + ("contact_audit",)
-"""Every figure of a run (file stem; the file is ``<stem>.png``): what ``walk.py`` writes and ``plot.py`` redraws.
-The reference figures need the scenario's trajectory."""
+"""Every figure of a run (file stem; the file is ``<stem>.png``): the thesis's full set, what ``walk.py --figures all``
+writes and ``plot.py`` redraws.  The reference figures need the scenario's trajectory."""
+QUICK_FIGURES: tuple[str, ...] = ("phases", "torques_right_toe_ankle", "torques_right_knee_hip", "contact_world",
+                                  "contact_audit")
+"""The figures a user looks at first (``walk.py``'s default, drawn in about a second): the phase timeline, the
+right leg's actuator torques, the ground reactions with their CoP and ZMP, and the contact audit."""
+FIGURE_SETS: dict[str, tuple[str, ...]] = {"quick": QUICK_FIGURES, "all": FIGURES, "none": ()}
+"""The named figure sets of ``walk.py --figures`` and ``plot.py --figures``."""
 
 
 class PlotError(HumanoidSimError, ValueError):
@@ -249,14 +262,6 @@ def _check(r: dict[str, np.ndarray]) -> None:
         raise PlotError(f"theta / T must have 26 columns, got {r['theta'].shape} / {r['T'].shape}")
 
 
-def _line(ax, r: dict[str, np.ndarray], signal: str, index: tuple[int, ...], **kw):
-    """Plot ``r[signal][:, *index]`` against t, tagged with its gid."""
-    y = r[signal][(slice(None),) + index]
-    (line,) = ax.plot(r["t"], y, **kw)
-    line.set_gid(f"{signal}:{','.join(str(i) for i in index)}")
-    return line
-
-
 def _time_figure(r, n_rows: int, n_cols: int = 1, height: float = 2.0, width: float | None = None):
     """A bare Figure (not pyplot: no global registry, so many figures can be alive at once) of time plots with the
     header band of :func:`_header`; fixed margins (inches) instead of a layout engine, which triples the drawing
@@ -274,7 +279,8 @@ def _time_figure(r, n_rows: int, n_cols: int = 1, height: float = 2.0, width: fl
     return fig, axes
 
 
-def _fig_phases(r):
+def _fig_phases(r, engine: str | None = None):
+    real = real_contact(engine)
     names = [str(x) for x in r["phase_names"]]
     fig, axes = _time_figure(r, 2, height=1.8)
     ax = axes[0, 0]
@@ -287,10 +293,12 @@ def _fig_phases(r):
     for f, foot in enumerate(("R", "L")):
         _line(ax, r, "in_contact", (f,), drawstyle="steps-post", color=FOOT_COLOURS[foot])
     ax.set_yticks([0, 1])
-    ax.set_yticklabels(["free", "held"])
+    ax.set_yticklabels(["swing", "support"] if real else ["free", "held"])
     ax.set_ylim(-0.15, 1.15)
-    ax.set_ylabel("foot constraint [-]")
-    _header(fig, "Phase timeline, and which foot is held on the ground",
+    ax.set_ylabel("planned support [-]" if real else "foot constraint [-]")
+    title = ("Phase timeline, and the planned support foot (the phase's contact set; the ground acts through real "
+             f"unilateral contact, {engine})" if real else "Phase timeline, and which foot is held on the ground")
+    _header(fig, title,
             [_handle("phase index", color=SIGNAL_COLOUR)]
             + [_handle(FOOT_NAMES[f], color=FOOT_COLOURS[f]) for f in ("R", "L")], _phases_present(r))
     return fig
@@ -364,94 +372,12 @@ def _fig_grf(r, signal: str, title: str, foot: str, bodies: tuple[tuple[int, int
 
 
 # ---------------------------------------------------------------------------------------- contact_world
-def _support_outlines(r: dict[str, np.ndarray], report: AuditReport) -> list[tuple[int, str, np.ndarray]]:
-    """(phase run start step, foot or "support", closed outline (k + 1, 2)) of every phase run: each supporting
-    sole's polygon at the run's first step (the feet are welded during a phase, so it holds for the whole run) and, in
-    double support, the support polygon (convex hull of both)."""
-    from humanoid_sim.analysis.audit import convex_hull
-
-    out = []
-    for a, _ in _phase_runs(r["phase"]):
-        polys = report.polygons[a]
-        present = [p for p in polys if p is not None and np.all(np.isfinite(p))]
-        for f, foot in enumerate(("R", "L")):
-            P = polys[f]
-            if P is not None and np.all(np.isfinite(P)):
-                out.append((a, foot, np.vstack([P, P[:1]])))
-        if len(present) == 2:
-            H = convex_hull(np.concatenate(present))
-            out.append((a, "support", np.vstack([H, H[:1]])))
-    return out
-
-
-def _fig_contact_world(r, report: AuditReport):
-    from matplotlib.gridspec import GridSpec
-
-    h_in = HEADER_IN + 0.75 + 3 * 2.0
-    fig = Figure(figsize=(13, h_in))
-    gs = GridSpec(3, 2, figure=fig, width_ratios=(1.55, 1.0), left=0.07, right=0.985, top=1 - (HEADER_IN + 0.25) / h_in,
-                  bottom=0.5 / h_in, hspace=0.12, wspace=0.18)
-    axes = [fig.add_subplot(gs[0, 0])]
-    axes += [fig.add_subplot(gs[i, 0], sharex=axes[0]) for i in (1, 2)]
-    for ax in axes:
-        _shade(ax, r)
-        ax.grid(True, lw=0.3)
-    for ax in axes[:2]:
-        ax.tick_params(labelbottom=False)
-    axes[2].set_xlabel("t [s]")
-    for f, foot in enumerate(("R", "L")):
-        _line(axes[0], r, "foot_wrench", (f, 2), color=FOOT_COLOURS[foot])
-    axes[0].set_ylabel("vertical force F_z [N]")
-    for i, ax in zip((0, 1), axes[1:]):
-        for f, foot in enumerate(("R", "L")):
-            _line(ax, r, "cop", (f, i), color=FOOT_COLOURS[foot])
-        _line(ax, r, "zmp", (i,), color=ZMP_COLOUR, lw=1)
-        ax.set_ylabel(f"CoP and ZMP {'xy'[i]} [m]")
-
-    # ground view: supporting soles, support polygons, CoP and ZMP, red where outside
-    g = fig.add_subplot(gs[:, 1])
-    g.set_label("ground view")
-    for a, who, P in _support_outlines(r, report):
-        if who == "support":
-            (line,) = g.plot(P[:, 0], P[:, 1], color=REFERENCE_COLOUR, lw=0.8, ls="--")
-        else:
-            (line,) = g.plot(P[:, 0], P[:, 1], color=FOOT_COLOURS[who], lw=0.9)
-        line.set_gid(f"ground:sole_{who}:{a}" if who != "support" else f"ground:support:{a}")
-    for f, foot in enumerate(("R", "L")):
-        c = report.cop[:, f]
-        ok = np.isfinite(c[:, 0])
-        out = report.cop_outside[:, f] & ok
-        (line,) = g.plot(c[ok & ~out, 0], c[ok & ~out, 1], ".", ms=2.5, color=FOOT_COLOURS[foot])
-        line.set_gid(f"ground:cop_{foot}")
-        (line,) = g.plot(c[out, 0], c[out, 1], "x", ms=3, mew=0.8, color=OUTSIDE_COLOUR)
-        line.set_gid(f"ground:cop_{foot}_outside")
-    z = report.zmp
-    ok = np.isfinite(z[:, 0])
-    out = report.zmp_outside & ok
-    (line,) = g.plot(z[ok & ~out, 0], z[ok & ~out, 1], "o", ms=2.5, mfc="none", mew=0.7, color=ZMP_COLOUR)
-    line.set_gid("ground:zmp")
-    (line,) = g.plot(z[out, 0], z[out, 1], "+", ms=4, mew=0.8, color=OUTSIDE_COLOUR)
-    line.set_gid("ground:zmp_outside")
-    g.set_aspect("equal", adjustable="datalim")
-    g.grid(True, lw=0.3)
-    g.set_xlabel("x [m]")
-    g.set_ylabel("y [m]")
-    g.set_title("ground view: soles, support polygons, CoP and ZMP", fontsize=9)
-    handles = ([_handle(f"{FOOT_NAMES[f]}: F_z, CoP, sole", color=FOOT_COLOURS[f], marker=".", ms=5)
-                for f in ("R", "L")]
-               + [_handle("whole-body ZMP", color=ZMP_COLOUR, marker="o", mfc="none", ms=4),
-                  _handle("support polygon (double support)", **REFERENCE_STYLE),
-                  _handle("outside its sole / support polygon", color=OUTSIDE_COLOUR, marker="x", ls="none")])
-    _header(fig, "Ground reaction per foot (world frame), centre of pressure and ZMP", handles, _phases_present(r),
-            left=0.01)
-    return fig
-
-
 # ---------------------------------------------------------------------------------------- the list
 def _builders(r: dict[str, np.ndarray], limits: dict[str, float], report: Callable[[], AuditReport],
-              title: str = "") -> dict[str, Callable[[], Figure]]:
-    """Every figure of :data:`TIME_STEMS` and ``contact_audit`` as a zero-argument builder, by file stem."""
-    builders: dict[str, Callable[[], Figure]] = {"phases": lambda: _fig_phases(r)}
+              title: str = "", engine: str | None = None) -> dict[str, Callable[[], Figure]]:
+    """Every figure of :data:`TIME_STEMS` and ``contact_audit`` as a zero-argument builder, by file stem; ``engine``
+    words the phase timeline and the audit for welded feet or real contact (:func:`.common.real_contact`)."""
+    builders: dict[str, Callable[[], Figure]] = {"phases": lambda: _fig_phases(r, engine)}
     for i, (stem, title_, names) in enumerate(JOINT_GROUPS):
         builders[stem] = lambda title_=title_, names=names, i=i: _fig_joints(r, title_, names, f"6.{54 + i}")
     builders["task_hip"] = lambda: _fig_task(r, "hip", "Position of the mass centre of body 17 with its reference "
@@ -465,15 +391,15 @@ def _builders(r: dict[str, np.ndarray], limits: dict[str, float], report: Callab
     for stem, signal, title_, foot, bodies in GRF_GROUPS:
         builders[stem] = (lambda signal=signal, title_=title_, foot=foot, bodies=bodies:
                           _fig_grf(r, signal, title_, foot, bodies))
-    builders["contact_world"] = lambda: _fig_contact_world(r, report())
-    builders["contact_audit"] = lambda: _audit_figure(report(), title)
+    builders["contact_world"] = lambda: contact_world_figure(r, report())
+    builders["contact_audit"] = lambda: _audit_figure(report(), title, engine)
     return builders
 
 
-def _audit_figure(report: AuditReport, title: str) -> Figure:
+def _audit_figure(report: AuditReport, title: str, engine: str | None = None) -> Figure:
     from humanoid_sim.outputs.plots.audit import contact_audit_figure
 
-    return contact_audit_figure(report, title=title)
+    return contact_audit_figure(report, title=title, engine=engine)
 
 
 def audit_of(r: dict[str, np.ndarray], mu: float = DEFAULT_FRICTION, hm: Any = None) -> AuditReport:
@@ -492,7 +418,7 @@ def audit_of(r: dict[str, np.ndarray], mu: float = DEFAULT_FRICTION, hm: Any = N
 
 def run_figures(r: dict[str, np.ndarray], limits: dict[str, float] | None = None,
                 only: list[str] | None = None, *, report: AuditReport | None = None,
-                mu: float = DEFAULT_FRICTION, title: str = "") -> dict[str, Figure]:
+                mu: float = DEFAULT_FRICTION, title: str = "", engine: str | None = None) -> dict[str, Figure]:
     """Every figure of a run except the reference ones (a :func:`humanoid_sim.interfaces.log.load_results` dict), by
     file
     stem, in :data:`FIGURES` order: :data:`TIME_STEMS` and ``contact_audit``.
@@ -500,8 +426,10 @@ def run_figures(r: dict[str, np.ndarray], limits: dict[str, float] | None = None
     The figures are bare :class:`matplotlib.figure.Figure` objects (not registered with pyplot).  ``limits``: saturation
     limit per torque name (N m), default :func:`torque_limits`.  ``only``: build just these stems.  ``report``: the
     run's contact audit (computed here with friction coefficient ``mu`` when a figure needs it and none is given).
-    ``title``: the scenario name, for the audit figure."""
+    ``title``: the scenario name, for the audit figure.  ``engine``: the run's engine (default: results.npz's
+    ``engine`` entry; None reads as welded feet), which words the phase timeline and the audit."""
     _check(r)
+    engine = engine_of(r, engine)
     limits = torque_limits() if limits is None else limits
     cache: dict[str, Any] = {"report": report}
 
@@ -510,7 +438,7 @@ def run_figures(r: dict[str, np.ndarray], limits: dict[str, float] | None = None
             cache["report"] = audit_of(r, mu)
         return cache["report"]
 
-    builders = _builders(r, limits, get_report, title)
+    builders = _builders(r, limits, get_report, title, engine)
     stems = list(builders) if only is None else [s for s in builders if s in set(only)]
     return {stem: builders[stem]() for stem in stems}
 
@@ -521,14 +449,14 @@ def figure_stems(r: dict[str, np.ndarray] | None = None) -> list[str]:
 
 
 def _render(results_path: str, out_dir: str, stems: list[str], dpi: int, report: AuditReport | None,
-            mu: float, title: str) -> list[str]:
+            mu: float, title: str, engine: str | None = None) -> list[str]:
     """Build and save the figures ``stems`` of a run (a worker's share of :func:`plot_all`)."""
     import io
 
     from humanoid_sim.interfaces.log import atomic_write_bytes, load_results
 
     out = []
-    figs = run_figures(load_results(results_path), only=stems, report=report, mu=mu, title=title)
+    figs = run_figures(load_results(results_path), only=stems, report=report, mu=mu, title=title, engine=engine)
     for stem, fig in figs.items():
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=dpi)
@@ -539,9 +467,15 @@ def _render(results_path: str, out_dir: str, stems: list[str], dpi: int, report:
 
 def plot_all(results_path: str | Path, out_dir: str | Path, traj: ReferenceTrajectory | None = None,
              *, dpi: int = 100, workers: int | None = None, mu: float = DEFAULT_FRICTION,
-             report: AuditReport | None = None, title: str = "", hm: Any = None) -> list[Path]:
+             report: AuditReport | None = None, title: str = "", hm: Any = None,
+             stems: tuple[str, ...] | list[str] | None = None, engine: str | None = None,
+             meanwhile: Callable[[], Any] | None = None) -> list[Path]:
     """Write the figures of :data:`FIGURES` of a run from its results.npz into ``out_dir``; returns the PNG paths in
     :data:`FIGURES` order.
+
+    ``stems``: draw only these figures (e.g. :data:`QUICK_FIGURES`; default every one of :data:`FIGURES`).
+    ``engine``: the run's engine, which words the phase timeline and the audit (default: results.npz's ``engine``).
+    ``meanwhile``: other work of the caller (the playback, say), run in this process while the workers draw.
 
     ``traj`` (the run's :class:`ReferenceTrajectory`): the reference-trajectory figures, skipped without it.  ``mu``:
     the friction coefficient of the contact audit, or ``report``: the audit itself (``hm``: the model to compute it
@@ -558,22 +492,29 @@ def plot_all(results_path: str | Path, out_dir: str | Path, traj: ReferenceTraje
     out_dir.mkdir(parents=True, exist_ok=True)
     r = load_results(results_path)
     _check(r)
-    if report is None:
+    wanted = set(FIGURES if stems is None else stems)
+    unknown = wanted - set(FIGURES)
+    if unknown:
+        raise PlotError(f"unknown figures {sorted(unknown)}; the figures are {', '.join(FIGURES)}")
+    engine = engine_of(r, engine)
+    if report is None and wanted & {"contact_world", "contact_audit"}:
         report = audit_of(r, mu, hm)
-    stems = figure_stems(r)
-    # contact_world and contact_audit are the slowest two: first and last, so that different workers draw them
-    stems = sorted(stems, key=lambda s: {"contact_world": -1, "contact_audit": 1}.get(s, 0))
-    workers = min(4, os.cpu_count() or 1) if workers is None else max(1, int(workers))
+    stems = [s for s in figure_stems(r) if s in wanted]
+    # contact_world and contact_audit are the slowest two: first and second, so that different workers draw them
+    stems = sorted(stems, key=lambda s: {"contact_world": -2, "contact_audit": -1}.get(s, 0))
+    workers = min(4, os.cpu_count() or 1, max(1, len(stems))) if workers is None else max(1, int(workers))
     shares = [stems[i::workers] for i in range(workers)]
     done: dict[str, Path] = {}
 
     def reference() -> None:
-        if traj is not None:
+        if traj is not None and wanted & set(REFERENCE_STEMS):
             import io
 
             from humanoid_sim.interfaces.log import atomic_write_bytes
 
             for stem, fig in reference_figures(traj).items():
+                if stem not in wanted:
+                    continue
                 buf = io.BytesIO()
                 fig.savefig(buf, format="png", dpi=120)
                 atomic_write_bytes(out_dir / f"{stem}.png", buf.getvalue())
@@ -582,11 +523,20 @@ def plot_all(results_path: str | Path, out_dir: str | Path, traj: ReferenceTraje
     if workers == 1:
         reference()
         done.update({Path(p).stem: Path(p) for p in _render(str(results_path), str(out_dir), stems, dpi, report,
-                                                             float(mu), title)})
+                                                             float(mu), title, engine)})
+        if meanwhile is not None:
+            meanwhile()
     else:
+        # what every worker needs, loaded before they fork from this process (each would load it anew otherwise)
+        import matplotlib.backends.backend_agg  # noqa: F401
+
+        import humanoid_sim.outputs.plots.audit  # noqa: F401
+
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = [pool.submit(_render, str(results_path), str(out_dir), share, dpi, report, float(mu), title)
-                       for share in shares if share]
+            futures = [pool.submit(_render, str(results_path), str(out_dir), share, dpi, report, float(mu), title,
+                                   engine) for share in shares if share]
             reference()  # meanwhile, in this process
+            if meanwhile is not None:
+                meanwhile()
             done.update({Path(p).stem: Path(p) for f in futures for p in f.result()})
     return [done[s] for s in FIGURES if s in done]

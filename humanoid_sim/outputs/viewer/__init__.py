@@ -3,12 +3,12 @@
 The scene (all coordinates in the world frame of design.md section 3: x lateral, y forward, z up, metres):
 
 - ``robot/<body>``: the URDF's visual geometry (boxes, cylinders, a sphere) posed from the logged
-  configuration ``q``; right side red, left side blue, centre bodies grey (URDF materials).
+  configuration ``q``; each part on one side in that side's colour (right green, left purple, as every figure's
+  feet: :func:`humanoid_sim.outputs.colours.body_colour`), trunk and head grey.
 - ``ground``: a 0.1 m grid on z = 0 around the walk, 1 m lines darker.
 - ``reference/hip_<k>``: the planned Body-17 CoM path, one line per phase, in the thesis phase colours
   (LFFSSP red, RFFDSP blue, RFFSSP magenta, LFFDSP cyan); ``reference/toe_R`` / ``reference/toe_L``: the planned
-  toe-point paths in their foot's colour (right green, left black, as in every figure:
-  :mod:`humanoid_sim.outputs.colours`);
+  toe-point paths in their foot's colour (:mod:`humanoid_sim.outputs.colours`);
   ``actual/hip``: the Body-17 CoM path the simulation produced (grey).
 - ``ghost/hip``, ``ghost/foot_R``, ``ghost/foot_L``: the reference Body-17 frame (at the reference CoM) and
   the reference Body-1 / Body-2 frames (at the reference toe points) as triads (x red, y green, z blue),
@@ -25,7 +25,10 @@ The scene (all coordinates in the world frame of design.md section 3: x lateral,
 
 The view follows the robot: the whole scene is moved so that the robot's hip (averaged over half a second) stays
 at the point the camera looks at.  Frames are sampled from the log at the display rate (default 30 fps, nearest
-logged step), so a 7 s walk makes a recording of about 2 MB.  Live playback runs a meshcat server bound to
+logged step); a walk longer than :data:`~.recording.MAX_FRAMES` frames (33 s) is sampled at the lower rate
+that keeps that many (:func:`~.recording.playback_fps`), and keys of nodes at rest are dropped
+(:func:`~.recording.prune_keys`), so a recording stays under about 5 MB however long the walk (7 s: about 1.3 MB).
+Live playback runs a meshcat server bound to
 127.0.0.1 only (both its ZeroMQ socket and its web server), so it refuses connections on every other address.
 """
 

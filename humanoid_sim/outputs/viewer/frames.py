@@ -17,7 +17,8 @@ from humanoid_sim.outputs.colours import (
     hex_int,
 )
 
-if TYPE_CHECKING:  # pragma: no cover
+if TYPE_CHECKING:
+    from humanoid_sim.analysis.audit import AuditReport  # pragma: no cover
     from humanoid_sim.references.chapter3 import ReferenceTrajectory
     from humanoid_sim.robot.model import HumanoidModel
 
@@ -34,7 +35,7 @@ LOOPBACK = "127.0.0.1"
 PHASE_HEX = {name: hex_int(c) for name, c in PHASE_COLOURS.items()}
 """Thesis L4219-4221 phase colours (:mod:`humanoid_sim.outputs.colours`), RGB hex."""
 FOOT_HEX = {foot: hex_int(c) for foot, c in FOOT_COLOURS.items()}
-"""One colour per foot, as in every figure: right green, left black."""
+"""One colour per side, as in every figure (:data:`humanoid_sim.outputs.colours.FOOT_COLOURS`)."""
 TOE_HEX = FOOT_HEX
 ZMP_HEX = hex_int(ZMP_COLOUR)
 OUTSIDE_HEX = hex_int(OUTSIDE_COLOUR)
@@ -185,7 +186,8 @@ def _translation(p: np.ndarray) -> np.ndarray:
 
 
 def build_frames(results: dict[str, np.ndarray], hm: HumanoidModel, traj: ReferenceTrajectory | None = None,
-                 fps: float = DISPLAY_FPS, force_scale: float = FORCE_SCALE) -> PlaybackFrames:
+                 fps: float = DISPLAY_FPS, force_scale: float = FORCE_SCALE,
+                 report: AuditReport | None = None) -> PlaybackFrames:
     """Sample a run (a :func:`humanoid_sim.interfaces.log.load_results` dict) at ``fps`` and pose every node.
 
     Robot bodies: pinocchio geometry placements of the logged ``q``.  Ghost frames: the reference of the
@@ -195,7 +197,8 @@ def build_frames(results: dict[str, np.ndarray], hm: HumanoidModel, traj: Refere
     audit, :mod:`humanoid_sim.analysis.audit`): each foot's CoP and the whole-body ZMP, each as an "inside" and an
     "outside"
     marker of which one is visible; the soles and support polygon of the phase shown (``supports``).  Camera and
-    labels: the :data:`FOLLOW` node and the camera at the robot's hip.
+    labels: the :data:`FOLLOW` node and the camera at the robot's hip.  ``report``: the run's contact audit when the
+    caller has it (else it is computed here).
     """
     import pinocchio as pin
 
@@ -263,7 +266,8 @@ def build_frames(results: dict[str, np.ndarray], hm: HumanoidModel, traj: Refere
 
     # feasibility: CoP per foot and ZMP, inside / outside markers; soles and support polygon of each phase
     try:
-        report = audit_results(results, hm, 0.8)  # mu enters only the friction check, which is not drawn
+        if report is None:
+            report = audit_results(results, hm, 0.8)  # mu enters only the friction check, which is not drawn
     except AuditError as exc:
         raise ViewerError(f"contact audit of the run: {exc}") from None
     for key, pts, outside in ([(f"cop_{foot}", report.cop[steps, f], report.cop_outside[steps, f])

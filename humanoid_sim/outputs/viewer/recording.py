@@ -24,6 +24,7 @@ from humanoid_sim.outputs.viewer.frames import (
 from humanoid_sim.outputs.viewer.scene import setup_scene
 
 if TYPE_CHECKING:  # pragma: no cover
+    from humanoid_sim.analysis.audit import AuditReport
     from humanoid_sim.references.chapter3 import ReferenceTrajectory
     from humanoid_sim.robot.model import HumanoidModel
 
@@ -39,8 +40,10 @@ class _RecordingWindow:
         data = command.lower()
         path = [p for p in data["path"].split("/") if p]
         node = find_node(self.tree, path)
-        packed = umsgpack.packb(data)
         kind = data["type"]
+        # animation values as single floats: three.js holds every keyframe track in a Float32Array anyway
+        packed = umsgpack.packb(data, force_float_precision="single") if kind == "set_animation" else \
+            umsgpack.packb(data)
         if kind == "set_object":
             node.object, node.properties = packed, []
         elif kind == "set_transform":
@@ -140,7 +143,24 @@ def _animation(vis: meshcat.Visualizer, fr: PlaybackFrames, fps: float) -> Anima
                 frame[path].set_property("scale", "vector3", [float(x) for x in s[i]])
             for path, v in fr.visible.items():
                 frame[path].set_property("visible", "boolean", bool(v[i]))
+    prune_keys(anim)
     return anim
+
+
+def prune_keys(anim: Animation) -> int:
+    """Drop every key of ``anim`` whose value equals both its neighbours' (a node at rest, a visibility that does not
+    change): three.js interpolates between the keys left (linearly, by slerp, or holding a boolean), so every frame
+    shows exactly what it showed with every key.  The first and last keys stay (the clip keeps its length).
+    Returns how many keys were dropped."""
+    dropped = 0
+    for clip in anim.clips.values():
+        for track in clip.tracks.values():
+            v, n = track.values, len(track.values)
+            keep = [i for i in range(n) if i == 0 or i == n - 1 or not (v[i] == v[i - 1] == v[i + 1])]
+            dropped += n - len(keep)
+            track.frames = [track.frames[i] for i in keep]
+            track.values = [v[i] for i in keep]
+    return dropped
 
 
 def _load_inputs(results_npz: str | Path, hm: HumanoidModel | None) -> tuple[dict[str, np.ndarray], Any]:
@@ -163,12 +183,32 @@ def _load_inputs(results_npz: str | Path, hm: HumanoidModel | None) -> tuple[dic
     return r, hm
 
 
+MAX_FRAMES = 1000
+"""Most frames a recording holds: 33 s at :data:`DISPLAY_FPS`.  A longer walk is sampled at a lower rate
+(:func:`playback_fps`), which keeps ``playback.html`` under about 5 MB (a 63 s walk: 16 fps)."""
+
+
+def playback_fps(duration_s: float, fps: float = DISPLAY_FPS, max_frames: int = MAX_FRAMES) -> float:
+    """The frame rate of a recording of ``duration_s`` seconds: ``fps``, or lower so that the recording has at
+    most ``max_frames`` frames (the frames of :func:`~.frames.build_frames`: one per 1 / rate from the start, and
+    one at or past the end)."""
+    if not (fps > 0):
+        raise ViewerError(f"fps must be positive, got {fps}")
+    if duration_s * fps + 1 <= max_frames:
+        return float(fps)
+    return float((max_frames - 1) / duration_s)
+
+
 def record(results_npz: str | Path, hm: HumanoidModel | None = None, traj: ReferenceTrajectory | None = None,
            *, fps: float = DISPLAY_FPS, force_scale: float = FORCE_SCALE,
-           repetitions: int = 1) -> tuple[_RecordingWindow, PlaybackFrames]:
-    """The recorded scene of a run (every meshcat command, as the browser receives them) and its frames."""
+           repetitions: int = 1, max_frames: int = MAX_FRAMES,
+           report: AuditReport | None = None) -> tuple[_RecordingWindow, PlaybackFrames]:
+    """The recorded scene of a run (every meshcat command, as the browser receives them) and its frames: sampled
+    at ``fps``, or at the lower rate that keeps a long walk to ``max_frames`` frames (:func:`playback_fps`)."""
     r, hm = _load_inputs(results_npz, hm)
-    fr = build_frames(r, hm, traj, fps=fps, force_scale=force_scale)
+    t = np.asarray(r["t"], dtype=float)
+    fps = playback_fps(float(t[-1] - t[0]), fps, max_frames)
+    fr = build_frames(r, hm, traj, fps=fps, force_scale=force_scale, report=report)
     window = _RecordingWindow()
     vis = meshcat.Visualizer(window=window)
     setup_scene(vis, r, hm, traj, fr)
@@ -178,16 +218,21 @@ def record(results_npz: str | Path, hm: HumanoidModel | None = None, traj: Refer
 
 def write_playback(results_npz: str | Path, out_html: str | Path, hm: HumanoidModel | None = None,
                    traj: ReferenceTrajectory | None = None, *, fps: float = DISPLAY_FPS,
-                   force_scale: float = FORCE_SCALE, repetitions: int = 1) -> Path:
+                   force_scale: float = FORCE_SCALE, repetitions: int = 1, max_frames: int = MAX_FRAMES,
+                   report: AuditReport | None = None) -> Path:
     """Write ``out_html``: a self-contained meshcat recording of the run that opens offline in a browser.
 
-    The animation (sampled at ``fps``) plays once on load, the camera following the robot; meshcat's "Animations"
-    panel replays and scrubs it, and ``playback.html#t=3.5`` opens it paused at t = 3.5 s.  A corner box shows the
-    simulation time and the phase.  Returns the path written.
+    The animation (sampled at ``fps``; a walk longer than ``max_frames`` frames at the rate that fits,
+    :func:`playback_fps`) plays once on load, the camera following the robot; meshcat's "Animations" panel replays
+    and scrubs it, and ``playback.html#t=3.5`` opens it paused at t = 3.5 s.  A corner box shows the simulation time
+    and the phase.  The size stays bounded: keys of a node at rest are dropped (:func:`prune_keys`), animation
+    values are single floats, and at most ``max_frames`` frames are kept.  ``report``: the run's contact audit when
+    the caller has it (else it is computed anew).  Returns the path written.
     """
     from humanoid_sim.interfaces.log import atomic_write_text
 
-    window, fr = record(results_npz, hm, traj, fps=fps, force_scale=force_scale, repetitions=repetitions)
+    window, fr = record(results_npz, hm, traj, fps=fps, force_scale=force_scale, repetitions=repetitions,
+                        max_frames=max_frames, report=report)
     html = window.get_scene(title=f"humanoid_sim playback: {Path(results_npz).parent.name}", overlay=_overlay(fr))
     out = Path(out_html)
     atomic_write_text(out, html)

@@ -8,6 +8,7 @@ import meshcat
 import meshcat.geometry as g
 import numpy as np
 
+from humanoid_sim.outputs.colours import body_colour, hex_int
 from humanoid_sim.outputs.viewer.frames import (
     _HEAD_LEN,
     _HEAD_RADIUS,
@@ -57,9 +58,10 @@ class _TextTexture(g.Texture):
                 "font_face": self.font_face}
 
 
-def _rgba_hex(rgba: np.ndarray) -> int:
-    r, gg, b = (int(round(255 * float(c))) for c in rgba[:3])
-    return (r << 16) | (gg << 8) | b
+def body_hex(name: str) -> int:
+    """meshcat colour of the robot part ``name`` (:func:`humanoid_sim.outputs.colours.body_colour`: its side's foot
+    colour, or the body colour), whatever colours the URDF gives its materials."""
+    return hex_int(body_colour(name))
 
 
 def _line(points: np.ndarray, colour: int, segments: bool = False) -> g.Object:
@@ -127,9 +129,8 @@ def setup_scene(vis: meshcat.Visualizer, results: dict[str, np.ndarray], hm: Hum
             geom = g.Cylinder(2 * go.geometry.halfLength, go.geometry.radius)
         else:
             geom = g.Sphere(go.geometry.radius)
-        rgba = np.asarray(go.meshColor)
-        vis[f"robot/{go.name}"].set_object(geom, g.MeshLambertMaterial(color=_rgba_hex(rgba),
-                                                                       opacity=float(rgba[3])))
+        opacity = float(np.asarray(go.meshColor)[3])
+        vis[f"robot/{go.name}"].set_object(geom, g.MeshLambertMaterial(color=body_hex(go.name), opacity=opacity))
 
     hips, toe_R, toe_L = _reference_paths(results, traj)
     for k, (name, pts) in enumerate(hips):
