@@ -102,7 +102,7 @@ def breakdown(hm, scenario, t_end: float | None) -> dict[str, float]:
     sim.run(t_end=t_end)
     prof.disable()
     stats = pstats.Stats(prof)
-    total = _cumtime(stats, "humanoid_sim/loop.py", "run")
+    total = _cumtime(stats, "humanoid_sim/sim/loop.py", "run")
     parts = {k: sum(_cumtime(stats, f, fn) for f, fn in v) for k, v in PARTS.items()}
     parts["other"] = max(total - sum(parts.values()), 0.0)
     return {k: round(v / total, 3) for k, v in parts.items()}
