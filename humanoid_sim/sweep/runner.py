@@ -12,8 +12,9 @@
   + 1 times (Dask re-runs it on another worker after each death, 3 retries by default) ends with Dask's
   ``KilledWorker`` and becomes a row with ``failure_kind = "worker_lost"``; a task that errs in Dask itself
   (e.g. a worker that cannot import humanoid_sim) a row with ``failure_kind = "exception"``.  Nothing of one
-  walk stops the sweep.  Only cancelled tasks (the scheduler or the connection lost) leave no row: running the
-  sweep again runs them.
+  walk stops the sweep.  A walk cancelled while the cluster is up (queued on a worker that died with it) is
+  submitted once more.  Only walks cancelled otherwise (the scheduler or the connection lost) leave no row: running
+  the sweep again runs them.
 """
 
 from __future__ import annotations
@@ -150,14 +151,21 @@ def execute(client: Any, walks: list[Walk], engine: str, source: str, out: Path,
     stats = RunStats()
     token = uuid.uuid4().hex[:8]
     futures: dict[Any, Walk] = {}
+    resubmitted: set[int] = set()
     t0 = time.perf_counter()
+
+    def submit(w: Walk, attempt: str = "") -> Any:
+        f = client.submit(walk_row, w.doc, engine, f"{source}: {w.label}", pure=False,
+                          key=f"walk-{w.index}-{w.scenario_hash}-{token}{attempt}")
+        futures[f] = w
+        return f
+
     try:
         for w in walks:
-            f = client.submit(walk_row, w.doc, engine, f"{source}: {w.label}", pure=False,
-                              key=f"walk-{w.index}-{w.scenario_hash}-{token}")
-            futures[f] = w
+            submit(w)
         stats.submitted = len(futures)
-        for f in as_completed(list(futures)):
+        pending = as_completed(list(futures))
+        for f in pending:
             w = futures.pop(f)
             summary = None
             if f.status == "finished":
@@ -171,6 +179,11 @@ def execute(client: Any, walks: list[Walk], engine: str, source: str, out: Path,
                 part, summary = res["row"], res["summary"]
             elif f.status == "error":
                 part = _row_of_error(f.exception())
+            elif w.index not in resubmitted and getattr(client, "status", None) == "running":
+                # cancelled while the cluster is up: a walk queued on a worker that died with it; run it once more
+                resubmitted.add(w.index)
+                pending.add(submit(w, "-again"))
+                continue
             else:  # cancelled: the scheduler or the connection was lost; no row, the next run does it
                 stats.not_run += 1
                 continue
