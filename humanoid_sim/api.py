@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from humanoid_sim.analysis.summary import contact_audit, feasibility, provenance, summarize
+from humanoid_sim.analysis.summary import provenance, summary_and_audit
 from humanoid_sim.engines import ENGINE_NAMES
 from humanoid_sim.errors import InputError
 from humanoid_sim.interfaces.log import SIGNALS, atomic_write_text
@@ -273,9 +273,7 @@ def prepare(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, co
 
 def finish(sim: Simulator, result: SimResult) -> Run:
     """The `Run` of a simulated walk: its summary and contact-feasibility audit."""
-    summary = summarize(result, sim.sc.name, sim.engine.name)
-    summary["contact"], report = contact_audit(result, sim.sc, sim.hm, result.phase_names)
-    summary.update(feasibility(summary))   # as summarize_with_audit, keeping the audit's report for the figures
+    summary, report = summary_and_audit(result, sim.sc, sim.engine.name, sim.hm, result.phase_names)
     return Run(sim.sc, sim.engine.name, result, summary, sim.hm, sim.traj, report)
 
 

@@ -96,13 +96,26 @@ def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[s
 
 def summarize_with_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
                          phase_names: list[str]) -> dict[str, Any]:
-    """:func:`summarize` plus the contact-feasibility audit (:func:`contact_audit`) as its ``contact`` section, as
-    ``walk.py`` writes summary.json.  ``scenario``: the :class:`humanoid_sim.scenario.schema.Scenario` run (its name and
-    friction coefficient); ``phase_names``: the names of the logged phase indices (``result.phase_names``)."""
+    """:func:`summary_and_audit`'s summary: what ``walk.py`` writes as summary.json."""
+    return summary_and_audit(result, scenario, engine, hm, phase_names)[0]
+
+
+def summary_and_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
+                      phase_names: list[str]) -> tuple[dict[str, Any], Any]:
+    """:func:`summarize` plus the contact-feasibility audit (:func:`contact_audit`) as its ``contact`` section and
+    the :func:`feasibility` verdict, and the audit's report (for the figures; None when the audit failed).
+
+    Args:
+        result: the run.
+        scenario: the :class:`humanoid_sim.scenario.schema.Scenario` run (its name and friction coefficient).
+        engine: the engine's name.
+        hm: the robot model.
+        phase_names: the names of the logged phase indices (``result.phase_names``).
+    """
     summary = summarize(result, scenario.name, engine)
-    summary["contact"] = contact_audit(result, scenario, hm, phase_names)[0]
+    summary["contact"], report = contact_audit(result, scenario, hm, phase_names)
     summary.update(feasibility(summary))
-    return summary
+    return summary, report
 
 
 EDGE_VERDICT_TOL_M = 1e-3

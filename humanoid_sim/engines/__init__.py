@@ -20,13 +20,14 @@ def make_engine(name: str, hm: Any, scenario: Any, traj: Any, compiled: bool | N
     """The engine called ``name`` for one run (``compiled``: the weld engine's compiled integration, see
     :class:`.weld.WeldEngine`, and the MuJoCo engine's compiled ground reads, :class:`.mujoco.MujocoEngine`;
     ``options``: settings of the MuJoCo engine, :class:`.mujoco.MujocoEngineSettings` fields, e.g.
-    ``control_period_s=0.001``)."""
-    if options and name != "mujoco":
-        raise ValueError(f"engine {name!r} takes no options, got {sorted(options)}")
+    ``control_period_s=0.001``; the weld engine takes ``control_period_s`` alone)."""
+    allowed = {"pinocchio": {"control_period_s"}, "thesis": set()}.get(name)
+    if allowed is not None and set(options) - allowed:
+        raise ValueError(f"engine {name!r} takes no options {sorted(set(options) - allowed)}")
     if name == "pinocchio":
         from humanoid_sim.engines.weld import WeldEngine
 
-        return WeldEngine(hm, scenario, traj, compiled=compiled)
+        return WeldEngine(hm, scenario, traj, compiled=compiled, **options)
     if name == "thesis":
         from humanoid_sim.engines.oracle import OracleEngine
 

@@ -115,9 +115,9 @@ class WeldEngine:
     name = "pinocchio"
 
     def __init__(self, hm: HumanoidModel, scenario: Scenario, traj: ReferenceTrajectory,
-                 compiled: bool | None = None) -> None:
+                 compiled: bool | None = None, control_period_s: float | None = None) -> None:
         """``compiled``: run the integration and projection compiled (:class:`SupportKernel`); None = when numba
-        is installed, False = never."""
+        is installed, False = never.  ``control_period_s``: see :attr:`control_period_s`."""
         self.hm = hm
         self.sc = scenario
         self.traj = traj
@@ -146,7 +146,7 @@ class WeldEngine:
         self.q = self.v = None
         self.anchors = None
         self.phase: Phase | None = None
-        self.control_period_s: float | None = None
+        self.control_period_s: float | None = control_period_s
         """Control period, s: None calls the controller at every ode3 stage as a feedthrough function of the state
         (the thesis's controller and the balance controller); a period calls it once per period and holds its
         torques over the period (zero-order hold), ode3 integrating the robot over each period (the step ``h``

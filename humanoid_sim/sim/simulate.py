@@ -107,11 +107,8 @@ class Simulator:
                 controller = BalanceController(scenario.balance, compiled=compiled is not False)  # --no-kernel
             else:
                 controller = ThesisController(compiled=compiled if engine in ("pinocchio", "mujoco") else False)
-        options = user_engine_options(engine, controller)
-        period = options.pop("control_period_s", None) if engine == "pinocchio" else None
-        self.engine = make_engine(engine, hm, scenario, self.traj, compiled=compiled, **options)
-        if period is not None:
-            self.engine.control_period_s = period
+        self.engine = make_engine(engine, hm, scenario, self.traj, compiled=compiled,
+                                  **user_engine_options(engine, controller))
         self.controller = controller
         controller.setup(ControlContext(hm, scenario, self.traj, self.q0, self.engine.name, self.engine.constraints,
                                         settings=_settings_for(controller, scenario)))

@@ -79,8 +79,10 @@ def test_registered_and_checked(hm: HumanoidModel, sc) -> None:
         MujocoEngine(hm, sc, control_periods=0.001)
     with pytest.raises(MujocoSimError, match="0.0015"):  # not a whole number of 1 ms MuJoCo steps
         MujocoEngine(hm, sc, control_period_s=0.0015)
-    with pytest.raises(ValueError, match="takes no options"):
-        make_engine("pinocchio", hm, sc, None, control_period_s=0.001)
+    with pytest.raises(ValueError, match=r"'pinocchio' takes no options \['timestep_s'\]"):
+        make_engine("pinocchio", hm, sc, None, timestep_s=0.001)        # the weld engine takes a control period only
+    with pytest.raises(ValueError, match=r"'thesis' takes no options \['control_period_s'\]"):
+        make_engine("thesis", hm, sc, None, control_period_s=0.001)
 
 
 def test_touchdown_signal_reads_the_sole_force(hm: HumanoidModel, sc) -> None:
