@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import importlib
-import re
 
 from humanoid_sim.errors import InputError
 from humanoid_sim.interfaces.controller import Controller
+from humanoid_sim.scenario.schema import DOTTED_CLASS
 
-DOTTED = re.compile(r"^[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*$")
 
 
 class ControllerLoadError(InputError):
@@ -18,7 +17,7 @@ class ControllerLoadError(InputError):
 def load_controller(spec: str, field: str = "controller_class") -> Controller:
     """Import ``module:Class`` and return ``Class()``; it must have ``setup(ctx)`` and be callable
     (:class:`humanoid_sim.interfaces.controller.Controller`)."""
-    if not isinstance(spec, str) or not DOTTED.match(spec):
+    if not isinstance(spec, str) or not DOTTED_CLASS.match(spec):
         raise ControllerLoadError(f"{field}: expected 'package.module:ClassName', got {spec!r}")
     module_name, cls_name = spec.split(":")
     try:

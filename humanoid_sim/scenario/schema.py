@@ -26,6 +26,7 @@ message names the file, the field path with its index (``path.R[3]``), the value
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -55,7 +56,7 @@ RESET_KEYS = ("Wadj_qdot_LFFSSP_to_RFFDSP", "Wadj_qdot_RFFSSP_to_LFFDSP")
 METHODS = ("ode3", "rk4", "euler")
 IMPACT_LAWS = ("thesis", "inelastic")
 FIRST_PHASES = ("LFFSSP", "RFFSSP")
-DOTTED_CLASS = r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$"
+DOTTED_CLASS = re.compile(r"^[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*$")
 """The form of ``controller_class``: ``package.module:ClassName``."""
 
 
@@ -267,10 +268,8 @@ def _check_reset(src: str, raw: Any) -> dict[str, np.ndarray]:
 def _user_controller(src: str, doc: dict) -> tuple[str | None, dict[str, Any]]:
     """``controller_class`` and ``controller_settings``: the class's dotted name (form checked here, imported when the
     walk is assembled) and its own settings (any mapping; the controller validates it in ``setup``)."""
-    import re
-
     cc = doc.get("controller_class")
-    if cc is not None and (not isinstance(cc, str) or not re.match(DOTTED_CLASS, cc)):
+    if cc is not None and (not isinstance(cc, str) or not DOTTED_CLASS.match(cc)):
         raise ScenarioError(f"{src}: controller_class: expected 'package.module:ClassName' (a controller class "
                             f"importable from PYTHONPATH), got {show(cc)}")
     settings = doc.get("controller_settings")
