@@ -9,7 +9,6 @@ from humanoid_sim.interfaces.controller import Controller
 from humanoid_sim.scenario.schema import DOTTED_CLASS
 
 
-
 class ControllerLoadError(InputError):
     """The named controller cannot be loaded or is not a controller (bad input: the message names the value)."""
 
