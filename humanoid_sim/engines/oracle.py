@@ -231,6 +231,20 @@ class OracleEngine:
         v[:6] = -np.linalg.solve(J[:, :6], J @ v)
         return q, v
 
+    def pin_acceleration(self, phase: Phase, q: np.ndarray, v: np.ndarray, theta_ddot: np.ndarray) -> np.ndarray:
+        """Pinocchio's acceleration a (nv,) of the thesis accelerations at the state (q, v) of :meth:`pin_state`:
+        the joint rows from ``theta_ddot`` (rad/s^2), the base rows from the root toe body staying at rest (its
+        LOCAL spatial acceleration J a + dJ v = 0)."""
+        model, data = self.model, self.data
+        a = self.E @ np.asarray(theta_ddot, dtype=float)
+        a[:6] = 0.0
+        fid = self.fid[TOE_FRAME[phase.support_foot]]
+        pin.forwardKinematics(model, data, q, v, a)
+        drift = pin.getFrameAcceleration(model, data, fid, pin.ReferenceFrame.LOCAL).vector
+        J = pin.computeFrameJacobian(model, data, q, fid, pin.ReferenceFrame.LOCAL)
+        a[:6] = -np.linalg.solve(J[:, :6], drift)
+        return a
+
     # ------------------------------------------------------------------ state
     def start(self, q0: np.ndarray, phase: Phase) -> None:
         """At rest at q0; the support foot's toe body is the chain root.  Limits NumPy's and SciPy's OpenBLAS to one
@@ -394,7 +408,7 @@ class OracleEngine:
         thdd_c = cmd.theta_ddot_cmd if cmd.theta_ddot_cmd is not None else np.full(26, np.nan)
         log.append(
             t=t, phase=k, basic_phase=BASIC[phase], q=out["q"], v=out["v"], theta=theta, theta_dot=theta_dot,
-            theta_ddot=fd.theta_ddot, theta_ddot_cmd=thdd_c, T_cmd=T_cmd, T=T,
+            theta_ddot=fd.theta_ddot, a=self.pin_acceleration(phase, out["q"], out["v"], fd.theta_ddot), theta_ddot_cmd=thdd_c, T_cmd=T_cmd, T=T,
             saturated=sat, tau=tau, hip_p=kin.P["c17"], hip_p_ref=ref.hip_p, hip_p_ctrl_ref=hip_ctrl,
             hip_v=kin.V["c17"], hip_v_ref=ref.hip_v, hip_R=R17, hip_R_ref=ref.hip_R, hip_yaw=yaw,
             hip_yaw_ref=yaw_ref, toe_R_p=kin.P["tpR"], toe_R_p_ref=ref.toe_R_p, toe_L_p=kin.P["tpL"],

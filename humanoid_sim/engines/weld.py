@@ -363,9 +363,9 @@ class WeldEngine:
         v = [r.v for r in records]
         (a, lam, thdd_c, T_cmd, T, sat, tau, pos, ori, res, hip_p, hip_v, R17, toe_R, toe_L, R1,
          R2) = zip(*(r.stage for r in records))
-        Q, V, A = np.array(q), np.array(v), np.array(a)
+        Q, V, A, TAU = np.array(q), np.array(v), np.array(a), np.array(tau)
         thesis = lambda X: hm.theta_sign * X[:, hm.theta_v_idx]  # noqa: E731 -- v-ordered arrays -> thesis
-        bf, bm, fw, cop = self._reactions.batch(Q, V, A, [ph.contacts for ph in phase], lam)
+        bf, bm, fw, cop = self._reactions.batch(Q, V, A, [ph.contacts for ph in phase], lam, TAU)
         stance = {ph: [f in ph.stance_feet for f in ("R", "L")] for ph in Phase}
         contact = np.array([stance[ph] for ph in phase])
         ftot = fw[:, :, :3].sum(axis=1)
@@ -381,9 +381,9 @@ class WeldEngine:
             prev_ref = yaw_ref[i] = unwrap_to(yaw_of(ref[i].hip_R), prev_ref)
         cols = dict(
             t=np.array(t), phase=np.array(k), basic_phase=np.array([BASIC[ph] for ph in phase]), q=Q, v=V,
-            theta=hm.theta_sign * Q[:, hm.theta_q_idx], theta_dot=thesis(V), theta_ddot=thesis(A),
+            theta=hm.theta_sign * Q[:, hm.theta_q_idx], theta_dot=thesis(V), theta_ddot=thesis(A), a=A,
             theta_ddot_cmd=np.array(thdd_c), T_cmd=np.array(T_cmd), T=np.array(T), saturated=np.array(sat),
-            tau=np.array(tau), hip_p=np.array(hip_p), hip_p_ref=np.array([r.hip_p for r in ref]),
+            tau=TAU, hip_p=np.array(hip_p), hip_p_ref=np.array([r.hip_p for r in ref]),
             hip_p_ctrl_ref=np.array(hip_ctrl), hip_v=np.array(hip_v), hip_v_ref=np.array([r.hip_v for r in ref]),
             hip_R=np.array(R17), hip_R_ref=np.array([r.hip_R for r in ref]), hip_yaw=yaw, hip_yaw_ref=yaw_ref,
             toe_R_p=np.array(toe_R), toe_R_p_ref=np.array([r.toe_R_p for r in ref]), toe_L_p=np.array(toe_L),

@@ -24,6 +24,7 @@ SIGNALS: dict[str, tuple[str, str]] = {
     "basic_phase": ("-", "0 LFFSSP, 1 RFFDSP, 2 RFFSSP, 3 LFFDSP"),
     "q": ("m, -, rad", "pinocchio configuration: O_17 position, quaternion (x y z w), joint angles"),
     "v": ("m/s, rad/s", "pinocchio velocity: O_17 twist in its frame, joint rates"),
+    "a": ("m/s^2, rad/s^2", "pinocchio acceleration: O_17 spatial acceleration in its frame, joint accelerations"),
     "theta": ("rad", "thesis joint angles, eq. 4.1 order"),
     "theta_dot": ("rad/s", "thesis joint rates"),
     "theta_ddot": ("rad/s^2", "thesis joint accelerations from the contact dynamics"),

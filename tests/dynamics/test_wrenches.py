@@ -175,3 +175,48 @@ def test_batch_input_checks_and_empty(hm: HumanoidModel, walk_states: dict) -> N
         rlog.batch(Q, V[:, :-1], A, cs, lams)
     out = rlog.batch(Q[:0], V[:0], A[:0], [], [])
     assert [x.shape for x in out] == [(0, 4, 3), (0, 4, 3), (0, 2, 6), (0, 2, 3)]
+
+
+def test_driven_toe_torque_goes_to_the_ground_under_the_toe_box(hm: HumanoidModel, walk_states: dict) -> None:
+    """A controller that drives a locked toe joint (the balance controller does): given the applied torques, the
+    toe body's ground wrench carries the couple -tau_toe about the toe axis and the main body's +tau_toe.  The three
+    paths agree (TOL, as above); each foot's total is the one without torques (round-off of adding and removing the
+    couple: 1e-9); and Pinocchio's inverse dynamics with these body wrenches returns the applied toe torque
+    (1e-6 N m: the forward dynamics' own residual, ~1e-11, is far below)."""
+    import pinocchio as pin
+
+    s = walk_states
+    rng = np.random.default_rng(3)
+    n, model = len(s["Q"]), hm.model
+    taus = rng.uniform(-20.0, 20.0, (n, model.nv))  # N m: the balance controller's toe torques reach ~22 N m
+    rlog = GroundReactionLog(model, FEET, BODY_FRAMES)
+    got = rlog.batch(s["Q"], s["V"], s["A"], s["contacts"], s["lams"], taus)
+    plain = rlog.batch(s["Q"], s["V"], s["A"], s["contacts"], s["lams"])
+    assert _max_dev(got[2], plain[2]) < TOL
+    assert _max_dev(got[1], plain[1]) > 1.0  # the couple moved between the foot's bodies
+    bf, bm = np.zeros_like(got[0]), np.zeros_like(got[1])
+    fw, cop = np.zeros_like(got[2]), np.full_like(got[3], np.nan)
+    for i in range(n):
+        rlog(s["Q"][i], s["V"][i], s["A"][i], s["contacts"][i], s["lams"][i], bf[i], bm[i], fw[i], cop[i], taus[i])
+    for x, y in zip(got, (bf, bm, fw, cop)):
+        assert _max_dev(x, y) < TOL
+    data = model.createData()
+    worst = 0.0
+    for i in range(0, n, 7):
+        gr = ground_reactions(model, s["Q"][i], s["V"][i], s["A"][i], s["contacts"][i], s["lams"][i], FEET,
+                              tau=taus[i])
+        pin.forwardKinematics(model, data, s["Q"][i])
+        pin.updateFramePlacements(model, data)
+        fext = [pin.Force.Zero() for _ in range(model.njoints)]
+        for frame, w in gr.bodies.items():
+            jid = model.frames[model.getFrameId(frame)].parentJoint
+            f_w = w.rotation @ w.force
+            world = pin.Force(f_w, w.rotation @ w.moment + np.cross(w.com, f_w))  # about the world origin
+            fext[jid] = fext[jid] + data.oMi[jid].actInv(world)
+        tau_id = pin.rnea(model, data, s["Q"][i], s["V"][i], s["A"][i], fext)
+        for foot in FEET:
+            if foot.toe_joint in s["contacts"][i].locks:
+                iv = model.joints[model.getJointId(foot.toe_joint)].idx_v
+                worst = max(worst, abs(tau_id[iv] - taus[i, iv]))
+    print("toe joint: max |rnea - applied| =", worst)
+    assert worst < 1e-6

@@ -10,7 +10,13 @@ Newton-Euler wrench (its weight plus inertia: F_0,1 = m_1 (a_c1 - g), M_0,1 = J 
 main body the rest.  In the floating-base model the whole foot load arrives through the weld of the main
 body (the toe is held through its joint and the lock), so the split is computed as: toe share = the toe's
 own Newton-Euler wrench, main share = weld wrench - toe share.  The sum -- the total ground wrench on the
-foot -- is the same in both formulations because the foot moves as one rigid body.  When only the toe is
+foot -- is the same in both formulations because the foot moves as one rigid body.
+
+A controller may still drive the locked toe joint (the balance controller does; the thesis's sets T1 = 0).  The
+lock then absorbs that torque, which on a real foot is the ground under the toe box pushing back.  Given the toe
+joint's applied torque tau_toe (``toe_torque``), the toe body's share becomes its own wrench minus the couple
+tau_toe about the toe axis, and the main body's share gains that couple: the total is unchanged, and inverse
+dynamics from these body wrenches returns the applied tau_toe at the toe joint instead of zero.  When only the toe is
 welded (trailing foot in double support), F_0,toe is that weld's wrench and the main body gets none.
 
 Centre of pressure: the point on z = 0 about which the foot's ground wrench has no horizontal moment,
@@ -130,20 +136,40 @@ def _body_wrench(model: pin.Model, data: pin.Data, frame: str, fid: int, w_world
 
 
 def _foot_split(model: pin.Model, data: pin.Data, fid_main: int, main_local: np.ndarray | None,
-                fid_toe: int | None, toe_local: np.ndarray | None, toe_held: bool) -> tuple[pin.Force, pin.Force]:
+                fid_toe: int | None, toe_local: np.ndarray | None, toe_held: bool,
+                toe_torque: float = 0.0) -> tuple[pin.Force, pin.Force]:
     """World wrenches (about the origin) of the ground on a foot's main body and toe body from the weld
     multipliers (LOCAL, None where the body is not welded).  When the toe joint is locked with the main body
-    welded, the toe body carries exactly its own Newton-Euler wrench and the main body the rest (errata K-10)."""
+    welded, the toe body carries exactly its own Newton-Euler wrench and the main body the rest (errata K-10),
+    less the couple of the toe joint's applied torque ``toe_torque`` (N m), which the ground under the toe box
+    takes (module docstring)."""
     w_main = _spatial_world(model, data, fid_main, main_local) if main_local is not None else pin.Force.Zero()
     w_toe = pin.Force.Zero()
     if fid_toe is not None:
         if toe_local is not None:
             w_toe = w_toe + _spatial_world(model, data, fid_toe, toe_local)
         if toe_held:
-            own = _own_newton_euler(model, data, model.frames[fid_toe].parentJoint)
+            jid = model.frames[fid_toe].parentJoint
+            own = _own_newton_euler(model, data, jid)
+            couple = toe_torque * (data.oMi[jid].rotation @ _joint_axis(model, jid))
+            own = pin.Force(own.linear, own.angular - couple)  # the ground pushes back on the driven toe
             w_toe = w_toe + own   # K-10: toe body carries its own weight and inertia ...
             w_main = w_main - own  # ... and the main body the rest of the foot load
     return w_main, w_toe
+
+
+def _joint_axis(model: pin.Model, jid: int) -> np.ndarray:
+    """Unit rotation axis of the revolute joint ``jid`` in its own frame (the angular part of its motion
+    subspace, read once per model and joint from a LOCAL joint Jacobian at the neutral configuration)."""
+    key = (id(model), jid)
+    entry = _AXES.get(key)
+    if entry is None or entry[0]() is not model:
+        J = pin.computeJointJacobian(model, model.createData(), pin.neutral(model), jid)
+        entry = _AXES[key] = (weakref.ref(model), J[3:, model.joints[jid].idx_v].copy())
+    return entry[1]
+
+
+_AXES: dict[tuple[int, int], tuple[weakref.ref, np.ndarray]] = {}
 
 
 def centre_of_pressure(force: np.ndarray, moment_origin: np.ndarray) -> tuple[np.ndarray, float]:
@@ -157,8 +183,11 @@ def centre_of_pressure(force: np.ndarray, moment_origin: np.ndarray) -> tuple[np
 
 
 def ground_reactions(model: pin.Model, q: np.ndarray, v: np.ndarray, a: np.ndarray, contacts: ContactSet,
-                     lam: np.ndarray, feet: Sequence[FootSpec], data: pin.Data | None = None) -> GroundReactions:
-    """Per-body (thesis) and per-foot (world) ground wrenches from a constrained-dynamics solution."""
+                     lam: np.ndarray, feet: Sequence[FootSpec], data: pin.Data | None = None,
+                     tau: np.ndarray | None = None) -> GroundReactions:
+    """Per-body (thesis) and per-foot (world) ground wrenches from a constrained-dynamics solution; ``tau``
+    (nv,), N m: the applied generalized torques, whose toe components the ground under a held toe box takes
+    (module docstring; None = zero)."""
     lam = np.asarray(lam, dtype=float)
     if lam.shape != (contacts.n_rows,):
         raise ContactInputError(f"lam must have shape ({contacts.n_rows},) for contact set {contacts.name!r}, "
@@ -177,8 +206,11 @@ def ground_reactions(model: pin.Model, q: np.ndarray, v: np.ndarray, a: np.ndarr
                     and foot.main_frame in welds)
         if toe_held:
             _joint_idx(model, foot.toe_joint, contacts)  # validates the name
+        toe_tau = 0.0
+        if toe_held and tau is not None:
+            toe_tau = float(tau[model.joints[model.getJointId(foot.toe_joint)].idx_v])
         w_main, w_toe = _foot_split(model, data, fid_main, welds.get(foot.main_frame), fid_toe,
-                                    welds.get(foot.toe_frame) if fid_toe is not None else None, toe_held)
+                                    welds.get(foot.toe_frame) if fid_toe is not None else None, toe_held, toe_tau)
         if fid_toe is not None:
             bodies[foot.toe_frame] = _body_wrench(model, data, foot.toe_frame, fid_toe, w_toe)
         bodies[foot.main_frame] = _body_wrench(model, data, foot.main_frame, fid_main, w_main)
@@ -237,16 +269,20 @@ class GroundReactionLog:
             bf[row], bm[row] = _in_body_frame(self.model, self.data, jid, fid, w)[:2]
 
     def __call__(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, contacts: ContactSet, lam: np.ndarray,
-                 bf: np.ndarray, bm: np.ndarray, fw: np.ndarray, cop: np.ndarray) -> None:
+                 bf: np.ndarray, bm: np.ndarray, fw: np.ndarray, cop: np.ndarray,
+                 tau: np.ndarray | None = None) -> None:
         """Fill bf, bm (n_bodies x 3, thesis convention; untouched rows stay as given), fw (n_feet x 6: world
-        force and moment about the origin) and cop (n_feet x 3, NaN when unloaded) at one instant."""
+        force and moment about the origin) and cop (n_feet x 3, NaN when unloaded) at one instant; ``tau``: the
+        applied generalized torques (nv,), N m, whose toe components a held toe box passes to the ground
+        (module docstring; None = zero)."""
         model, data = self.model, self.data
         pin.forwardKinematics(model, data, q, v, a)
         pin.updateFramePlacements(model, data)
         for i, (fid_main, main_sl, jid_main, row_main, toe) in enumerate(self._plan(contacts)):
             fid_toe, toe_sl, toe_held, jid_toe, row_toe = toe if toe is not None else (None, None, False, 0, None)
+            toe_tau = float(tau[model.joints[jid_toe].idx_v]) if toe_held and tau is not None else 0.0
             w_main, w_toe = _foot_split(model, data, fid_main, lam[main_sl] if main_sl is not None else None,
-                                        fid_toe, lam[toe_sl] if toe_sl is not None else None, toe_held)
+                                        fid_toe, lam[toe_sl] if toe_sl is not None else None, toe_held, toe_tau)
             if toe is not None:
                 self._body(jid_toe, fid_toe, w_toe, row_toe, bf, bm)
             self._body(jid_main, fid_main, w_main, row_main, bf, bm)
@@ -292,6 +328,8 @@ class GroundReactionLog:
                     motion = motion_joints.index(jid_toe)
             inertia = model.inertias[jid_toe] if toe_held else None
             feet.append(_BatchFoot(main=main, toe=toe_body, toe_held=toe_held, motion=motion,
+                                   toe_v=model.joints[jid_toe].idx_v if toe_held else -1,
+                                   toe_axis=_joint_axis(model, jid_toe) if toe_held else np.zeros(3),
                                    mass=float(inertia.mass) if inertia is not None else 0.0,
                                    rot_inertia=inertia.inertia.copy() if inertia is not None else np.zeros((3, 3))))
         bplan = _BatchPlan(feet=tuple(feet), pose_joints=tuple(pose_joints), motion_joints=tuple(motion_joints))
@@ -329,13 +367,15 @@ class GroundReactionLog:
         return H, VA
 
     def batch(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray, contacts: Sequence[ContactSet],
-              lams: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+              lams: Sequence[np.ndarray], taus: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Ground reactions at n instants: exactly what n calls of ``__call__`` fill, computed in one pass.
 
         Q (n x nq), V (n x nv), A (n x nv): stacked configurations, velocities (m/s, rad/s) and accelerations
         (m/s^2, rad/s^2), pinocchio conventions; ``contacts[i]`` the contact set of instant i (instants are
         grouped by contact set, so repeat the same object); ``lams[i]`` its multipliers (contacts[i].n_rows,
-        layout of :mod:`humanoid_sim.dynamics.contact.constraints`).
+        layout of :mod:`humanoid_sim.dynamics.contact.constraints`); ``taus`` (n x nv, N m): the applied generalized
+        torques, whose toe components a held toe box passes to the ground (module docstring; None = zero).
 
         Returns (bf, bm, fw, cop):
         bf, bm  n x n_bodies x 3: F_0,k (N) and M_0,k (N m, about the CoM of body k), both in body frame k
@@ -391,6 +431,10 @@ class GroundReactionLog:
                 if foot.toe_held:  # K-10: the toe body carries its own weight and inertia, the main body the rest
                     own = _own_newton_euler_batch(foot, Rj[:, foot.toe.pose], pj[:, foot.toe.pose],
                                                   VA[:, foot.motion], g_lin, g_ang)
+                    if taus is not None:  # the ground under the toe box pushes back on the driven toe
+                        couple = np.asarray(taus, dtype=float)[idx, foot.toe_v][:, None] * _mv(
+                            Rj[:, foot.toe.pose], np.broadcast_to(foot.toe_axis, (len(rows), 3)))
+                        own = (own[0], own[1] - couple)
                     w_toe = own if w_toe is None else (w_toe[0] + own[0], w_toe[1] + own[1])
                     w_main = (-own[0], -own[1]) if w_main is None else (w_main[0] - own[0], w_main[1] - own[1])
                 f_tot, n_tot = np.zeros((len(rows), 3)), np.zeros((len(rows), 3))
@@ -431,13 +475,16 @@ class _BatchBody:
 
 @dataclass(frozen=True)
 class _BatchFoot:
-    """A foot with ground contact in a batch plan; ``motion`` (index in the read joint motions), ``mass`` (kg)
-    and ``rot_inertia`` (kg m^2, about the CoM, joint frame) of the toe body are used when ``toe_held``."""
+    """A foot with ground contact in a batch plan; ``motion`` (index in the read joint motions), ``toe_v`` (the toe
+    joint's index in v), ``toe_axis`` (its unit axis, joint frame), ``mass`` (kg) and ``rot_inertia`` (kg m^2,
+    about the CoM, joint frame) of the toe body are used when ``toe_held``."""
 
     main: _BatchBody
     toe: _BatchBody | None
     toe_held: bool
     motion: int
+    toe_v: int
+    toe_axis: np.ndarray
     mass: float
     rot_inertia: np.ndarray
 
