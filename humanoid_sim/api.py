@@ -39,6 +39,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
     from humanoid_sim.analysis.audit import AuditReport
+    from humanoid_sim.analysis.design import DesignCard
     from humanoid_sim.interfaces.controller import Controller
 
 Engine = Literal["pinocchio", "thesis", "mujoco"]
@@ -147,6 +148,8 @@ class Run:
         hm: the robot model.
         traj: the reference trajectory the walk followed.
         audit: the contact-feasibility audit behind ``summary["contact"]``, or None when it could not be made.
+        design: the design numbers behind ``summary["design"]`` (:class:`humanoid_sim.analysis.design.DesignCard`:
+            per joint torque, speed, power, work and loads over every integration step), or None without a step.
     """
 
     scenario: Scenario
@@ -156,6 +159,7 @@ class Run:
     hm: HumanoidModel = field(repr=False)
     traj: Any = field(repr=False)
     audit: AuditReport | None = field(default=None, repr=False)
+    design: DesignCard | None = field(default=None, repr=False)
 
     @property
     def status(self) -> RunStatus:
@@ -178,7 +182,7 @@ class Run:
                 "v_names": np.array([n for n, _ in _component_labels("v", (hm.model.nv,), hm)])}
 
     def write(self, out: str | Path, *, figures: bool | str | Sequence[str] = True,
-              playback: bool = True) -> list[Path]:
+              playback: bool = True, full_rate: bool = False) -> list[Path]:
         """Write the run's outputs into the folder ``out`` (created if missing).
 
         ``results.npz`` holds the log, the column names (:meth:`column_names`) and the ``engine``; ``summary.json``
@@ -192,9 +196,17 @@ class Run:
                 (:data:`humanoid_sim.outputs.plots.thesis.FIGURES`), ``"quick"`` for the few a user looks at first
                 (``QUICK_FIGURES``), False or ``"none"`` for none, or a list of figure names.
             playback: also write ``playback.html`` (a self-contained 3-D recording).
+            full_rate: also write ``trace.npz``, the signals at every integration step
+                (:mod:`humanoid_sim.interfaces.trace`; ~1.5 MB per simulated second on MuJoCo).
+
+        Besides, with the design numbers (:attr:`design`): ``design.csv`` (per joint: torque, speed, power, work,
+        joint loads), ``fatigue.csv`` (rainflow cycles per km) and ``load_cases.json`` (per joint the worst
+        wrenches with time, frame and state), and the sizing figures among ``figures``
+        (:func:`humanoid_sim.outputs.design.write_design`).
 
         Returns:
-            The paths written: ``results.npz``, ``summary.json``, then the figures and the playback.
+            The paths written: ``results.npz``, ``summary.json``, the design files, then the figures and the
+            playback.
         """
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
@@ -204,6 +216,13 @@ class Run:
         atomic_write_text(out / "summary.json", json.dumps(self.summary, indent=2) + "\n")
         written = [out / "results.npz", out / "summary.json"]
         stems = _figure_stems(figures)
+        if self.design is not None:
+            from humanoid_sim.outputs.design import write_design
+
+            written += write_design(self.design, out, trace=self.result.trace if full_rate else None,
+                                    figures=[s for s in stems if s.startswith("sizing")], title=self.scenario.name,
+                                    engine=self.engine)
+            stems = tuple(s for s in stems if not s.startswith("sizing"))
         html: list[Path] = []
 
         def play() -> None:
@@ -225,18 +244,21 @@ class Run:
 
 
 def _figure_stems(figures: bool | str | Sequence[str]) -> tuple[str, ...]:
-    """The figure names of `Run.write`'s ``figures`` argument."""
+    """The figure names of `Run.write`'s ``figures`` argument: the thesis's figures and the sizing card's."""
+    from humanoid_sim.outputs.design import SIZING_FIGURES
     from humanoid_sim.outputs.plots.thesis import FIGURE_SETS, FIGURES
 
+    every = FIGURES + tuple(SIZING_FIGURES)
+    sets = {**FIGURE_SETS, "all": every}
     if isinstance(figures, bool):
-        return FIGURES if figures else ()
+        return every if figures else ()
     if isinstance(figures, str):
-        if figures not in FIGURE_SETS:
-            raise InputError(f"figures: {figures!r} is not one of {', '.join(FIGURE_SETS)} or a list of figures")
-        return FIGURE_SETS[figures]
-    unknown = [f for f in figures if f not in FIGURES]
+        if figures not in sets:
+            raise InputError(f"figures: {figures!r} is not one of {', '.join(sets)} or a list of figures")
+        return sets[figures]
+    unknown = [f for f in figures if f not in every]
     if unknown:
-        raise InputError(f"figures: unknown figures {unknown}; the figures are {', '.join(FIGURES)}")
+        raise InputError(f"figures: unknown figures {unknown}; the figures are {', '.join(every)}")
     return tuple(figures)
 
 
@@ -274,7 +296,14 @@ def prepare(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, co
 def finish(sim: Simulator, result: SimResult) -> Run:
     """The `Run` of a simulated walk: its summary and contact-feasibility audit."""
     summary, report = summary_and_audit(result, sim.sc, sim.engine.name, sim.hm, result.phase_names)
-    return Run(sim.sc, sim.engine.name, result, summary, sim.hm, sim.traj, report)
+    card = None
+    if result.trace is not None and len(result.trace):
+        from humanoid_sim.analysis.design import SETTLING_S, design_card
+
+        real_ground = "ground" in result.extra   # an engine with real contact starts by settling on it
+        card = design_card(result.trace, result.log.arrays(), sim.hm, SETTLING_S if real_ground else 0.0)
+        summary["design"] = card.summary()
+    return Run(sim.sc, sim.engine.name, result, summary, sim.hm, sim.traj, report, card)
 
 
 def run_walk(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, until: float | None = None,

@@ -53,7 +53,7 @@ def test_the_dataframe_names_every_component_by_joint_and_unit(short_run: hs.Run
 
 def test_write_puts_the_summary_and_the_log_on_disk(short_run: hs.Run, tmp_path: Path) -> None:
     written = short_run.write(tmp_path / "out", figures=False, playback=False)
-    assert [p.name for p in written] == ["results.npz", "summary.json"]
+    assert [p.name for p in written] == ["results.npz", "summary.json", "design.csv", "fatigue.csv", "load_cases.json"]
     assert json.loads((tmp_path / "out" / "summary.json").read_text()) == json.loads(json.dumps(short_run.summary))
     with np.load(tmp_path / "out" / "results.npz") as z:
         assert np.array_equal(z["T"], short_run.log["T"])

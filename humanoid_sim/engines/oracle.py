@@ -408,7 +408,8 @@ class OracleEngine:
         thdd_c = cmd.theta_ddot_cmd if cmd.theta_ddot_cmd is not None else np.full(26, np.nan)
         log.append(
             t=t, phase=k, basic_phase=BASIC[phase], q=out["q"], v=out["v"], theta=theta, theta_dot=theta_dot,
-            theta_ddot=fd.theta_ddot, a=self.pin_acceleration(phase, out["q"], out["v"], fd.theta_ddot), theta_ddot_cmd=thdd_c, T_cmd=T_cmd, T=T,
+            theta_ddot=fd.theta_ddot, a=self.pin_acceleration(phase, out["q"], out["v"], fd.theta_ddot),
+            theta_ddot_cmd=thdd_c, T_cmd=T_cmd, T=T,
             saturated=sat, tau=tau, hip_p=kin.P["c17"], hip_p_ref=ref.hip_p, hip_p_ctrl_ref=hip_ctrl,
             hip_v=kin.V["c17"], hip_v_ref=ref.hip_v, hip_R=R17, hip_R_ref=ref.hip_R, hip_yaw=yaw,
             hip_yaw_ref=yaw_ref, toe_R_p=kin.P["tpR"], toe_R_p_ref=ref.toe_R_p, toe_L_p=kin.P["tpL"],

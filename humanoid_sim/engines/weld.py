@@ -43,6 +43,7 @@ from humanoid_sim.interfaces.controller import Command, Observation
 from humanoid_sim.interfaces.engine import StepRow
 from humanoid_sim.interfaces.log import SimLog
 from humanoid_sim.interfaces.selector import PhaseSelector, all_finite
+from humanoid_sim.interfaces.trace import Trace
 from humanoid_sim.kernel.log import StageLog
 from humanoid_sim.references.chapter3 import ReferenceTrajectory
 from humanoid_sim.robot.actuators import Actuators
@@ -161,6 +162,7 @@ class WeldEngine:
         self.v = np.zeros(self.model.nv)
         self.phase = phase
         self.landings = []
+        self._substeps: list[tuple] = []   # held control: per integration step, what the trace needs
         self.anchors = record_anchors(self.model, self.q, phase.contacts)
         if self.support_kernel is not None:
             self.support_kernel.warm_up(self.q, len(self.rk.tab.c))
@@ -221,6 +223,8 @@ class WeldEngine:
             checks.check_acceleration(ts, fwd.a)
             if not stage0:
                 stage0.append(self._stage0_record(phase, qs, vs, cmd, fwd.a, fwd.lam))
+            if stage == 0:  # the start of an integration step: a row of the full-rate trace
+                self._substeps.append((ts, k, phase, qs, vs, fwd.a, fwd.lam, tau, cmd.T, cmd.saturated, cmd.T_cmd))
             return fwd.a
 
         if self.support_kernel is None:
@@ -350,6 +354,34 @@ class WeldEngine:
         self.phase = phase
 
     # ------------------------------------------------------------------ logging
+    def build_trace(self) -> Trace | None:
+        """With a control period (:attr:`control_period_s`), the full-rate trace: one row per integration step of
+        one period (:mod:`humanoid_sim.interfaces.trace`); None otherwise (every integration step is then a loop
+        step, and the log is the trace)."""
+        if self.control_period_s is None or not self._substeps:
+            return None
+        t, k, phase, q, v, a, lam, tau, T, sat, T_cmd = zip(*self._substeps)
+        Q, V, A, TAU = np.array(q), np.array(v), np.array(a), np.array(tau)
+        n = len(t)
+        if all(x is not None for x in T):
+            T_arr = np.array(T)
+            T_cmd_arr = np.array([x if x is not None else y for x, y in zip(T_cmd, T)])
+            sat_arr = np.array([x if x is not None else self._no_sat for x in sat])
+        else:
+            T_arr = T_cmd_arr = np.array([self.act.thesis_torques(Q[i], V[i], A[i], TAU[i]) for i in range(n)])
+            sat_arr = np.zeros((n, 26), dtype=bool)
+        bf, bm, fw, cop = self._reactions.batch(Q, V, A, [ph.contacts for ph in phase], lam, TAU)
+        ftot, mtot = fw[:, :, :3].sum(axis=1), fw[:, :, 3:].sum(axis=1)
+        zmp = np.full((n, 3), np.nan)
+        ok = ftot[:, 2] > 1e-9
+        zmp[ok] = np.stack([-mtot[ok, 1] / ftot[ok, 2], mtot[ok, 0] / ftot[ok, 2], np.zeros(ok.sum())], axis=1)
+        stance = {ph: [f in ph.stance_feet for f in ("R", "L")] for ph in Phase}
+        cols = {"t": np.array(t), "phase": np.array(k), "basic_phase": np.array([BASIC[ph] for ph in phase]),
+                "q": Q, "v": V, "a": A, "tau": TAU, "T": T_arr, "T_cmd": T_cmd_arr, "saturated": sat_arr,
+                "body_force": bf, "body_moment": bm, "foot_wrench": fw.reshape(n, 2, 6), "cop": cop, "zmp": zmp,
+                "in_contact": np.array([stance[ph] for ph in phase])}
+        return Trace(cols, float(self.control_period_s), "engine")
+
     def build_log(self, rows: list[StepRow]) -> SimLog:
         """The log from the loop's rows (their records are :class:`WeldRecord`): stacked, with the derived signals
         (thesis coordinates, unwrapped yaws, ground reactions, centres of pressure, ZMP) computed in one pass after

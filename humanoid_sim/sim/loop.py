@@ -47,6 +47,7 @@ from humanoid_sim.interfaces.controller import Command, Controller, ControllerEr
 from humanoid_sim.interfaces.engine import Engine, StepRow
 from humanoid_sim.interfaces.log import SimLog
 from humanoid_sim.interfaces.selector import CoordinateNames, PhaseRecord, PhaseSelector, SimulationError
+from humanoid_sim.interfaces.trace import Trace, trace_of_log
 from humanoid_sim.references.chapter3 import ReferenceTrajectory
 from humanoid_sim.robot.phases import Phase, SwitchThresholds, ssp_should_end
 from humanoid_sim.scenario.schema import Scenario
@@ -81,6 +82,9 @@ class SimResult:
     """The exception that ended the run, or None."""
     traceback: str | None = None
     """The formatted traceback of :attr:`error` (where a controller or the simulation failed), or None."""
+    trace: Trace | None = None
+    """The signals at every integration step of the engine (:mod:`humanoid_sim.interfaces.trace`), or None when
+    nothing was logged."""
 
 
 def thresholds_of(scenario: Scenario) -> SwitchThresholds:
@@ -146,7 +150,7 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
         sel.hold_in(hold)
     rows: list[StepRow] = []
     completed, reason = False, ""
-    status, error, trace = RunStatus.FAILED, None, None
+    status, error, trace_text = RunStatus.FAILED, None, None
     steps = 0
     on_landing = getattr(controller, "landing", None)
     check = getattr(engine, "check", None)                  # optional engine hooks (engines.base.Engine)
@@ -198,15 +202,15 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
             own = isinstance(exc, FallError) or type(exc) in (SimulationError, ControllerError)
             reason = str(exc) if own else f"{type(exc).__name__} at t = {t:.3f} s in {sel.where()}: {exc}"
             status = RunStatus.FELL if isinstance(exc, FallError) else RunStatus.FAILED
-            error, trace = exc, "".join(tb.format_exception(exc))
+            error, trace_text = exc, "".join(tb.format_exception(exc))
         except KeyboardInterrupt:
             reason = f"interrupted by the user at t = {t:.3f} s"
             status = RunStatus.INTERRUPTED
         sel.close(t)
         try:
-            log = engine.build_log(rows)
+            log, trace = _build(engine, rows, h)
         except KeyboardInterrupt:  # an interrupt during the post-loop pass: finish it, report the interruption
-            log = engine.build_log(rows)
+            log, trace = _build(engine, rows, h)
             if status is not RunStatus.INTERRUPTED:
                 completed, reason = False, f"interrupted by the user at t = {t:.3f} s"
                 status = RunStatus.INTERRUPTED
@@ -222,7 +226,19 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
         names[0] = hold.value
     return SimResult(log=log, phases=sel.records, phases_planned=n_phases, completed=completed, reason=reason,
                      sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps, stage_evaluations=control.calls,
-                     extra=extra, phase_names=names, status=status, error=error, traceback=trace)
+                     extra=extra, phase_names=names, status=status, error=error, traceback=trace_text,
+                     trace=trace)
+
+
+def _build(engine: Engine, rows: list[StepRow], h: float) -> tuple[SimLog, Trace | None]:
+    """The run's log and its full-rate trace: the engine's own (``build_trace``) when it records one, else the log
+    (every integration step of such an engine is a loop step of ``h`` s); None without a logged step."""
+    log = engine.build_log(rows)
+    build_trace = getattr(engine, "build_trace", None)
+    trace = build_trace() if build_trace is not None else None
+    if trace is None and len(log):
+        trace = trace_of_log(log.arrays(), h)
+    return log, trace
 
 
 __all__ = ["RUN_ERRORS", "SimResult", "run", "thresholds_of"]

@@ -94,6 +94,7 @@ from humanoid_sim.interfaces.controller import Command, Observation
 from humanoid_sim.interfaces.engine import StepRow
 from humanoid_sim.interfaces.log import SimLog
 from humanoid_sim.interfaces.selector import PhaseSelector, all_finite
+from humanoid_sim.interfaces.trace import RowBuffer, Trace
 from humanoid_sim.robot.actuators import Actuators
 from humanoid_sim.robot.model import FOOT_BODY, TOE_BODY, HumanoidModel
 from humanoid_sim.robot.phases import Phase
@@ -181,6 +182,22 @@ class MujocoRecord(NamedTuple):
     cop: np.ndarray
 
 
+_PHASE_OF_BASIC = sorted(BASIC, key=BASIC.__getitem__)  # basic phase index -> Phase
+
+
+def _trace_layout(nq: int, nv: int) -> dict[str, Any]:
+    """Columns of a trace row (:meth:`MujocoEngine._trace_row`): 4 scalars, then MuJoCo's qpos (nq), qvel and
+    qacc (nv), the feet's wrenches (2 x 6) and centres of pressure (2 x 3), the foot bodies' forces and moments
+    (4 x 3 each)."""
+    cols: dict[str, Any] = {}
+    at = 4
+    for name, size in (("qpos", nq), ("qvel", nv), ("qacc", nv), ("fw", 12), ("cop", 6), ("bf", 12), ("bm", 12)):
+        cols[name] = slice(at, at + size)
+        at += size
+    cols["width"] = at
+    return cols
+
+
 class MujocoEngine:
     """The thesis humanoid on MuJoCo's ground (see the module docstring).
 
@@ -238,6 +255,9 @@ class MujocoEngine:
         self.phase: Phase | None = None
         self.anchors = None
         self._end = np.zeros(6)       # the loads at the state after the last step (ground.end_loads)
+        nq_mj, nv_mj = self.mm.model.nq, self.mm.model.nv
+        # full-rate trace row: t, phase index, basic phase, control update, qpos, qvel, qacc, fw, cop, bf, bm
+        self._cols = _trace_layout(nq_mj, nv_mj)
         self._reset_measures()
 
     def _reset_measures(self) -> None:
@@ -259,6 +279,8 @@ class MujocoEngine:
         self.phase = phase
         self.anchors = record_anchors(self.model, self.q, phase.contacts)
         self._reset_measures()
+        self._rows = RowBuffer(self._cols["width"])
+        self._updates: list[tuple[np.ndarray, Any, Any, Any]] = []   # per control update: tau, T, saturated, T_cmd
         self.sim.forward()
         end_loads(self.mm, self.sim.data, self._end, self.compiled)
 
@@ -287,16 +309,19 @@ class MujocoEngine:
                 checks.check_stage(ti, q, v, i)
             cmd = control(Observation(ti, k, phase, q, v, anchors, i, checks.plan_delay))
             tau = self._tau(q, cmd)
+            self._updates.append((tau.copy(), cmd.T, cmd.saturated, cmd.T_cmd))
             # one MuJoCo step first: its acceleration and contact forces are those of the state at ti
             sim.hold(tau)
             sim.advance(1)
             checks.check_acceleration(ti, data.qacc)  # finite iff Pinocchio's a is
+            self._trace_row(ti, k)
             if i == 0:
                 record = self._record(q, v, cmd, tau)
             if self._measure(ti):
                 break  # a fall: the run ends at this state (check() reports it)
-            if self._n_sub > 1:
-                sim.advance(self._n_sub - 1)   # the rest of the control period, tau still held
+            for j in range(1, self._n_sub):   # the rest of the control period, tau still held
+                sim.advance(1)
+                self._trace_row(ti + j * sim.timestep, k)
         self.q, self.v = sim.state()
         sim.forward()
         end_loads(self.mm, data, self._end, self.compiled)
@@ -413,6 +438,69 @@ class MujocoEngine:
         if fid is None:
             fid = self._frame_ids[name] = self.hm.frame_id(name)
         return fid
+
+    # ------------------------------------------------------------------ the full-rate trace
+    def _trace_row(self, t: float, k: int) -> None:
+        """Record the MuJoCo step just taken (:mod:`humanoid_sim.interfaces.trace`): the state at its start, its
+        acceleration and the ground's wrenches (those of that state), and the control update whose torques it
+        held."""
+        c, data = self._cols, self.sim.data
+        row = self._rows.next_row()
+        row[0], row[1], row[2], row[3] = t, k, BASIC[self.phase], len(self._updates) - 1
+        qpos, qvel = self.sim.state_before_step()
+        row[c["qpos"]] = qpos
+        row[c["qvel"]] = qvel
+        row[c["qacc"]] = data.qacc
+        fw, cop = row[c["fw"]].reshape(2, 6), row[c["cop"]].reshape(2, 3)
+        bf, bm = row[c["bf"]].reshape(4, 3), row[c["bm"]].reshape(4, 3)
+        done = False
+        if self.compiled:
+            con = data.contact
+            done = mjc.contact_wrenches(con.geom, con.pos, con.frame, con.dim, con.efc_address, data.efc_force,
+                                        self._group, self.mm.floor_geom, self._wrench_bodies, data.xipos,
+                                        data.xmat, fw, cop, bf, bm)
+        if not done:
+            self._contact_record(fw, cop, bf, bm)
+
+    def build_trace(self) -> Trace | None:
+        """The run's full-rate trace: one row per MuJoCo step (:attr:`sim`'s timestep), in Pinocchio's conventions
+        (None before any step).  Torques are those of the control update each step held; the thesis torques of a
+        controller that gives joint torques only are derived at every step's state."""
+        R = self._rows.array()
+        n = len(R)
+        if n == 0:
+            return None
+        c, smap = self._cols, self.map
+        upd = R[:, 3].astype(np.intp)
+        Q, V, A = np.empty((n, self.model.nq)), np.empty((n, self.model.nv)), np.empty((n, self.model.nv))
+        qpos, qvel, qacc = R[:, c["qpos"]], R[:, c["qvel"]], R[:, c["qacc"]]
+        for i in range(n):
+            if self.compiled:
+                Q[i], V[i] = mjc.pin_state(qpos[i], qvel[i], smap.q_gather, smap.v_gather)
+            else:
+                Q[i], V[i] = smap.q_from_qpos(qpos[i]), smap.v_from_qvel(qpos[i], qvel[i])
+            A[i] = self._acceleration(Q[i], V[i], qacc[i])
+        taus = np.array([u[0] for u in self._updates])
+        TAU = taus[upd]
+        if all(u[1] is not None for u in self._updates):
+            T = np.array([u[1] for u in self._updates])[upd]
+            T_cmd = np.array([u[3] if u[3] is not None else u[1] for u in self._updates])[upd]
+            sat = np.array([u[2] if u[2] is not None else self._no_sat for u in self._updates])[upd]
+        else:
+            T = T_cmd = np.array([self.act.thesis_torques(Q[i], V[i], A[i], TAU[i]) for i in range(n)])
+            sat = np.zeros((n, 26), dtype=bool)
+        fw = R[:, c["fw"]].reshape(n, 2, 6)
+        ftot, mtot = fw[:, :, :3].sum(axis=1), fw[:, :, 3:].sum(axis=1)
+        zmp = np.full((n, 3), np.nan)
+        ok = ftot[:, 2] > 1e-9
+        zmp[ok] = np.stack([-mtot[ok, 1] / ftot[ok, 2], mtot[ok, 0] / ftot[ok, 2], np.zeros(ok.sum())], axis=1)
+        basic = R[:, 2].astype(int)
+        stance = np.array([[f in ph.stance_feet for f in FEET] for ph in _PHASE_OF_BASIC])
+        cols = {"t": R[:, 0].copy(), "phase": R[:, 1].astype(int), "basic_phase": basic, "q": Q, "v": V, "a": A,
+                "tau": TAU, "T": T, "T_cmd": T_cmd, "saturated": sat, "body_force": R[:, c["bf"]].reshape(n, 4, 3),
+                "body_moment": R[:, c["bm"]].reshape(n, 4, 3), "foot_wrench": fw,
+                "cop": R[:, c["cop"]].reshape(n, 2, 3), "zmp": zmp, "in_contact": stance[basic]}
+        return Trace(cols, self.sim.timestep, "engine")
 
     # ------------------------------------------------------------------ ground measures and falls
     def _measure(self, t: float) -> bool:

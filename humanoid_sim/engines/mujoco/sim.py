@@ -141,6 +141,11 @@ class MujocoSim:
                                  f"t = {t_start:.4f} s (the state diverged or a torque was huge); the state is "
                                  "left at the start of the step")
 
+    def state_before_step(self) -> tuple[np.ndarray, np.ndarray]:
+        """MuJoCo's (qpos, qvel) at the start of the last :meth:`advance` (views, overwritten by the next one): the
+        state whose acceleration and contact forces the data hold after an ``advance(1)``."""
+        return self._saved
+
     def forward(self) -> None:
         """Bring MuJoCo's derived quantities (kinematics, contacts, contact forces) to the current state."""
         if not self._fresh:
