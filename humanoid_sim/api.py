@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from humanoid_sim.analysis.summary import provenance, summary_and_audit
+from humanoid_sim.analysis.summary import provenance, summary_audit_design
 from humanoid_sim.engines import ENGINE_NAMES
 from humanoid_sim.errors import InputError
 from humanoid_sim.interfaces.log import SIGNALS, atomic_write_text
@@ -295,14 +295,7 @@ def prepare(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, co
 
 def finish(sim: Simulator, result: SimResult) -> Run:
     """The `Run` of a simulated walk: its summary and contact-feasibility audit."""
-    summary, report = summary_and_audit(result, sim.sc, sim.engine.name, sim.hm, result.phase_names)
-    card = None
-    if result.trace is not None and len(result.trace):
-        from humanoid_sim.analysis.design import SETTLING_S, design_card
-
-        real_ground = "ground" in result.extra   # an engine with real contact starts by settling on it
-        card = design_card(result.trace, result.log.arrays(), sim.hm, SETTLING_S if real_ground else 0.0)
-        summary["design"] = card.summary()
+    summary, report, card = summary_audit_design(result, sim.sc, sim.engine.name, sim.hm, result.phase_names)
     return Run(sim.sc, sim.engine.name, result, summary, sim.hm, sim.traj, report, card)
 
 

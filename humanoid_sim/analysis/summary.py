@@ -78,8 +78,14 @@ def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, A
 
 def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[str]) -> tuple[dict[str, Any], Any]:
     """The ``contact`` section of summary.json and the :class:`humanoid_sim.analysis.audit.AuditReport` behind it (None,
-    and
-    ``{"error": message}``, when the log is inconsistent with the phase contact sets)."""
+    and ``{"error": message}``, when the log is inconsistent with the phase contact sets).
+
+    The section is :meth:`humanoid_sim.analysis.audit.AuditReport.summary` (its fractions judge edges with
+    :data:`EDGE_VERDICT_TOL_M` and skip the unloaded steps), plus what the engine measured on the ground: ``landing``
+    (an engine that welds landing feet: :func:`humanoid_sim.engines.landing.landing_summary`), and on real ground
+    ``settling`` and ``sliding`` when the engine's ``run_info`` gives them in its ``ground`` entry
+    (:meth:`humanoid_sim.engines.mujoco.ground.GroundMeter.report`: the start-up settling's measures, the feet's
+    sliding events)."""
     from humanoid_sim.analysis.audit import AuditError, audit_results
 
     try:
@@ -92,6 +98,10 @@ def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[s
         from humanoid_sim.engines.landing import landing_summary
 
         out["landing"] = landing_summary(result.extra["landings"], scenario.contact.friction_coefficient)
+    ground = result.extra.get("ground") or {}
+    for key in ("settling", "sliding"):     # real ground (engines/mujoco/ground.py)
+        if key in ground:
+            out[key] = ground[key]
     return out, report
 
 
@@ -113,16 +123,34 @@ def summary_and_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
         hm: the robot model.
         phase_names: the names of the logged phase indices (``result.phase_names``).
     """
+    return summary_audit_design(result, scenario, engine, hm, phase_names)[:2]
+
+
+def summary_audit_design(result: SimResult, scenario: Any, engine: str, hm: Any,
+                         phase_names: list[str]) -> tuple[dict[str, Any], Any, Any]:
+    """:func:`summary_and_audit` plus the design numbers (:func:`humanoid_sim.analysis.design.design_card`) as the
+    summary's ``design`` section; returns (summary, audit report, design card or None without a step).  On an
+    engine with real contact the start-up settling is left out of the design numbers and reported apart."""
+    from humanoid_sim.analysis.design import SETTLING_S, design_card
+
     summary = summarize(result, scenario.name, engine)
     summary["contact"], report = contact_audit(result, scenario, hm, phase_names)
     summary.update(feasibility(summary))
-    return summary, report
+    card = None
+    if result.trace is not None and len(result.trace):
+        real_ground = "ground" in result.extra   # an engine with real contact starts by settling on it
+        card = design_card(result.trace, result.log.arrays(), hm, SETTLING_S if real_ground else 0.0)
+        summary["design"] = card.summary()
+    return summary, report, card
 
 
-EDGE_VERDICT_TOL_M = 1e-3
-"""m: a centre of pressure up to this far outside its sole's edge still counts as on the sole in the feasibility
-verdict. A foot pivoting on an edge puts it just past the edge (MuJoCo's soft contact, up to tens of um); a walk that
-needs ground beyond its soles misses by centimetres."""
+from humanoid_sim.analysis.audit import EDGE_TOL_M  # noqa: E402  (imported here, with the verdict that reads it)
+
+EDGE_VERDICT_TOL_M = EDGE_TOL_M
+"""m: a centre of pressure up to this far outside its sole's edge still counts as on the sole, in the feasibility
+verdict and in the audit's fractions: the one edge tolerance, :data:`humanoid_sim.analysis.audit.EDGE_TOL_M` (1 mm;
+its docstring gives the measurements). A foot pivoting on an edge of MuJoCo's soft ground puts its CoP just past
+the edge (up to 0.1 mm measured); a walk that needs ground beyond its soles misses by centimetres."""
 
 
 def feasibility(summary: dict[str, Any]) -> dict[str, Any]:
@@ -130,7 +158,9 @@ def feasibility(summary: dict[str, Any]) -> dict[str, Any]:
 
     On an engine with real contact (MuJoCo) the ground is physical, so the walk is feasible unless it fell. On the
     welded engines it is feasible when no foot pulls on the ground, no centre of pressure lies more than
-    :data:`EDGE_VERDICT_TOL_M` outside its sole, and no foot needs more friction than the scenario's coefficient.
+    :data:`EDGE_VERDICT_TOL_M` outside its sole (the tolerance the audit's ``cop_outside_fraction`` counts with,
+    so the percentage quoted is that of the steps beyond it), and no foot needs more friction than the scenario's
+    coefficient; the audit's unloaded steps are judged by none of these.
 
     Args:
         summary: a run's summary with its ``contact`` section (:func:`contact_audit`).

@@ -245,6 +245,7 @@ def _run(args: argparse.Namespace, spec, to_run, engine: str, out: Path, sink, w
 
 
 def _plots(spec, rows: list[dict], out: Path) -> None:
+    from humanoid_sim.analysis.design import joint_limits
     from humanoid_sim.robot.actuators import T_NAMES, Actuators
     from humanoid_sim.sweep.plots import actuator_labels, plot_feasibility, plot_sizing, sizing_group
     from humanoid_sim.sweep.walk import model
@@ -254,7 +255,8 @@ def _plots(spec, rows: list[dict], out: Path) -> None:
     plot_sizing(rows, T_NAMES, limits, out / "sizing.png",
                 title=f"{name}: actuator sizing over {sum(1 for r in rows if r['completed'])} completed walks "
                       f"(of {len(rows)})", labels=actuator_labels(),
-                group=sizing_group(spec.axes))
+                group=sizing_group(spec.axes), joints=[th for name in T_NAMES for th, (tn, _) in joint_limits().items()
+                                                       if tn == name])
     plot_feasibility(rows, spec.axes, out / "feasibility.png", title=f"{name}: completion and contact feasibility",
                      base_doc=spec.base_doc)
 

@@ -62,8 +62,8 @@ GROUP_COLOURS = ("#2e86c1", "#27ae60", "#8e44ad", "#d35400")
 
 
 def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Sequence[float], path: Path,
-                title: str = "", labels: Sequence[str] | None = None, group: str | None = None
-                ) -> dict[str, np.ndarray]:
+                title: str = "", labels: Sequence[str] | None = None, group: str | None = None,
+                joints: Sequence[str] | None = None) -> dict[str, np.ndarray]:
     """Write the actuator-sizing figure of the completed ``rows`` to ``path`` (PNG).  ``names``: actuator names
     (``T1`` ...), ``limits``: their saturation limits, N m; ``labels``: tick labels (default: the names).
 
@@ -72,6 +72,10 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
     of the peak applied |T| and one of the peak commanded |T_cmd|; with it, one box of the peak applied |T| per
     group value (side by side, one colour each) and a marker at the largest commanded |T_cmd| of that group, and
     the saturation bars per group.
+
+    ``joints``: per actuator the thesis joint variable whose axis it drives at the reference posture
+    (:func:`humanoid_sim.analysis.design.joint_limits`); with it, two more panels show per joint the walks' peak speed
+    (rad/s) and peak mechanical power (W) from the rows' design columns, in the same column as the torque.
 
     Returns what the boxes show: per set (its legend label; "" without ``group``), the (walks, actuators) array
     of peak applied |T| / limit."""
@@ -94,7 +98,13 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
     sets = [(f"{group} = {_label(v)}", [r for r in done if r.get(group) == v]) for v in values] if values else \
         [("", done)]
     applied = {label: peaks(rs, "torque_peak_Nm") for label, rs in sets}   # what the boxes show, per set
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    if joints is None:
+        fig, (ax, ax2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+        extra = []
+    else:
+        fig, (ax, ax3, ax4, ax2) = plt.subplots(4, 1, figsize=(14, 12), sharex=True,
+                                                gridspec_kw={"height_ratios": [3, 1.5, 1.5, 1]})
+        extra = [(ax3, "speed_peak_rad_s", "peak speed\n[rad/s]"), (ax4, "power_peak_W", "peak power\n[W]")]
     x = np.arange(len(names))
 
     def box(data: list[np.ndarray], dx: float, width: float, colour: str, label: str) -> None:
@@ -137,6 +147,22 @@ def plot_sizing(rows: Sequence[dict[str, Any]], names: Sequence[str], limits: Se
         for j, (label, rs) in enumerate(sets):
             ax2.bar(x + (j - (n_sets - 1) / 2) * width, 100 * saturating(rs), width=width * 0.8,
                     color=GROUP_COLOURS[j % len(GROUP_COLOURS)], label=label)
+    for axe, key, ylabel in extra:   # per joint axis: the walks' peak speed and power, one box per set
+        assert joints is not None
+        for j, (_, rs) in enumerate(sets):
+            colour = GROUP_COLOURS[j % len(GROUP_COLOURS)]
+            data = [np.array([_num(r.get(f"design_joints_{th}_{key}")) for r in rs]) for th in joints]
+            clean = [d[np.isfinite(d)] for d in data]
+            dx = (j - (n_sets - 1) / 2) * width
+            if any(len(c) for c in clean):
+                bp = axe.boxplot(clean, positions=x + dx, widths=width * 0.8, patch_artist=True, whis=(0, 100),
+                                 medianprops={"color": "black"}, manage_ticks=False, showfliers=False)
+                for b in bp["boxes"]:
+                    b.set_facecolor(colour)
+                    b.set_alpha(0.75)
+        axe.set_ylabel(ylabel)
+        axe.set_ylim(bottom=0.0)
+        axe.grid(axis="y", alpha=0.3)
     ax2.set_ylabel("walks\nsaturating, %")
     ax2.set_ylim(0, 105)
     ax2.grid(axis="y", alpha=0.3)

@@ -43,8 +43,8 @@ def model() -> Any:
 
 
 def torque_rms(T: np.ndarray) -> np.ndarray:
-    """Root mean square over the logged steps of each actuator torque, N m: ``T`` (N, 26) -> (26,); NaN when
-    N = 0.  The step is fixed, so this is the RMS over time (what sizes a motor's continuous rating)."""
+    """Root mean square over the steps of each actuator torque, N m: ``T`` (N, 26) -> (26,); NaN when N = 0.  The
+    step is fixed, so this is the RMS over time (what sizes a motor's continuous rating)."""
     T = np.asarray(T, dtype=float)
     if T.shape[0] == 0:
         return np.full(T.shape[1], np.nan)
@@ -68,7 +68,8 @@ def run_walk(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, 
     model()   # counted once per process
     run = api.run_walk(parse_scenario(doc, source), engine)
     summary = run.summary
-    rms = torque_rms(run.result.log.arrays()["T"]) if len(run.result.log) else np.full(len(T_NAMES), np.nan)
+    trace = run.result.trace   # every integration step (the log where that is every step)
+    rms = torque_rms(trace.columns["T"]) if trace is not None and len(trace) else np.full(len(T_NAMES), np.nan)
     out: dict[str, Any] = {}
     for k, v in summary.items():   # torque_rms_Nm next to torque_peak_Nm
         out[k] = v
@@ -84,9 +85,11 @@ _NOT_COLUMNS = ("scenario", "engine", "completed", "status", "reason", "phase_lo
 def flatten_summary(summary: dict[str, Any]) -> dict[str, Any]:
     """The summary's numbers as flat columns: a scalar ``k`` -> ``k``; a mapping of scalars ``k: {a: x}`` ->
     ``k_a`` (per actuator ``torque_peak_Nm_T1`` ..., per foot ``..._R``); the contact audit's totals with the
-    prefix ``contact_`` (its per-phase breakdown is left to the walk's summary file).  Skipped: the scenario
-    name, engine, completion and reason (columns of their own) and the phase log.  The summary's
-    ``completed`` (every planned phase done) becomes ``all_phases_completed``."""
+    prefix ``contact_`` (its per-phase breakdown is left to the walk's summary file); every scalar leaf of the
+    design numbers, names joined by ``_`` (``design_walk_work_positive_J``, per joint
+    ``design_joints_theta11_speed_peak_rad_s``).
+    Skipped: the scenario name, engine, completion and reason (columns of their own) and the phase log.  The
+    summary's ``completed`` (every planned phase done) becomes ``all_phases_completed``."""
     out: dict[str, Any] = {"all_phases_completed": bool(summary["completed"])}
 
     def put(name: str, v: Any) -> None:
@@ -99,6 +102,16 @@ def flatten_summary(summary: dict[str, Any]) -> dict[str, Any]:
 
     for k, v in summary.items():
         if k in _NOT_COLUMNS:
+            continue
+        if k == "design" and isinstance(v, dict):   # every scalar leaf: design_walk_*, design_joints_<theta>_*
+            stack = [("design", v)]
+            while stack:
+                prefix, d = stack.pop()
+                for sub, x in d.items():
+                    if isinstance(x, dict):
+                        stack.append((f"{prefix}_{sub}", x))
+                    elif not isinstance(x, list):
+                        out[f"{prefix}_{sub}"] = x
             continue
         if k == "contact" and isinstance(v, dict):
             if "error" in v:

@@ -59,8 +59,8 @@ def test_flattening_keeps_every_summary_number(short_walk):
         assert cols[f"torque_rms_Nm_{name}"] == summary["torque_rms_Nm"][name]
     for key in ("hip_com_error_rms_m", "hip_yaw_error_rms_rad", "saturated_fraction", "contact_infeasible_fraction",
                 "contact_cop_outside_fraction_R", "contact_friction_exceeded_fraction_L",
-                "contact_zmp_outside_fraction",
-                "wall_time_s"):
+                "contact_zmp_outside_fraction", "design_walk_work_positive_J",
+                "design_joints_theta11_speed_peak_rad_s", "design_joints_theta3_power_peak_W", "wall_time_s"):
         assert key in cols
 
 
