@@ -58,6 +58,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--view", action="store_true", help="play the run live in a meshcat server on 127.0.0.1: prints "
                    "the URL, waits for a browser, plays there; Ctrl-C stops the server")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--full-rate", action="store_true",
+                   help="also write trace.npz: the signals at every integration step (every MuJoCo step), from which "
+                        "the summary's peaks are taken (~1.3 MB per simulated second on MuJoCo)")
     return p
 
 
@@ -242,7 +245,7 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
     interrupted = result.status is RunStatus.INTERRUPTED   # Ctrl-C: save the log now, skip the slow outputs
     stale = _remove_stale_outputs(out)
     written = run.write(out, figures="none" if interrupted else args.figures,
-                        playback=not (args.no_html or interrupted))
+                        playback=not (args.no_html or interrupted), full_rate=args.full_rate)
     figures = [p for p in written if p.suffix == ".png"]
     html = next((p for p in written if p.suffix == ".html"), None)
     _print_summary(run.summary, out)
@@ -361,6 +364,18 @@ def _print_summary(s: dict, out: Path) -> None:
         print("  on the ground: " + (f"FELL at t = {s['fall_time_s']:.3f} s" if s["fell"] else "stood")
               + f"; foot slip max {_mm(s['foot_slip_max_m'])}; stance foot tilt max "
               + ("n/a" if tilt is None else f"{tilt:.3f} rad") + f"; penetration max {_mm(s['penetration_max_m'])}")
+    d = s.get("design")
+    if d is not None:
+        w, b = d["walk"], d["walk"]["binding_joint"]
+        cot = w["mechanical_cost_of_transport"]
+        rate = d["rates"]["trace_period_s"]
+        print(f"  design (every {rate * 1000:g} ms step"
+              + (f", after {d['rates']['settling_excluded_s']:g} s of settling" if d["rates"]["settling_excluded_s"]
+                 else "") + f"): {w['distance_m']:.2f} m walked, positive joint work {w['work_positive_J']:.0f} J, "
+              f"mechanical cost of transport {'n/a' if cot is None else f'{cot:.2f}'}; peak vertical ground force "
+              f"{w['ground_force_vertical_peak_N']:.0f} N"
+              + ("" if b is None else f"; tightest joint {b['joint']} at {b['torque_peak_Nm']:.1f} of "
+                 f"{b['limit_Nm']:g} N m") + " (design.csv)")
     c = s.get("contact", {})
     if "error" in c:
         print(f"  contact audit failed: {c['error']}")
