@@ -181,11 +181,26 @@ class Run:
                 "q_names": np.array([n for n, _ in _component_labels("q", (hm.model.nq,), hm)]),
                 "v_names": np.array([n for n, _ in _component_labels("v", (hm.model.nv,), hm)])}
 
+    def _joint_wrench(self) -> dict[str, np.ndarray]:
+        """``{"joint_wrench": (n, 26, 6)}``: the wrench every joint transmits at the logged steps (thesis joint order;
+        :mod:`humanoid_sim.dynamics.joint_loads`), empty without a logged step."""
+        from humanoid_sim.dynamics.joint_loads import fext_from_body_wrenches, joint_loads
+
+        a = self.result.log.arrays()
+        if not len(self.result.log):
+            return {}
+        model = self.hm.model
+        loads = joint_loads(model, a["q"], a["v"], a["a"], fext_from_body_wrenches(model, a["body_force"],
+                                                                                   a["body_moment"]),
+                            joints=list(THETA_NAMES))
+        return {"joint_wrench": loads.wrench}
+
     def write(self, out: str | Path, *, figures: bool | str | Sequence[str] = True,
               playback: bool = True, full_rate: bool = False) -> list[Path]:
         """Write the run's outputs into the folder ``out`` (created if missing).
 
-        ``results.npz`` holds the log, the column names (:meth:`column_names`) and the ``engine``; ``summary.json``
+        ``results.npz`` holds the log, the column names (:meth:`column_names`), the ``engine`` and ``joint_wrench`` (the
+        wrench every joint transmits at each logged step, :mod:`humanoid_sim.dynamics.joint_loads`); ``summary.json``
         the summary, with a ``provenance`` section (:func:`humanoid_sim.analysis.summary.provenance`; added here
         when the summary has none).  A run that ended before its first step has nothing to draw or play: it gets
         neither figures nor playback.
@@ -212,7 +227,8 @@ class Run:
         out.mkdir(parents=True, exist_ok=True)
         self.summary.setdefault("provenance", provenance("python API"))
         self.result.log.save(out / "results.npz", self.result.phase_names,
-                             extra={**self.column_names(), "engine": np.array(self.engine)})
+                             extra={**self.column_names(), "engine": np.array(self.engine),
+                                    **self._joint_wrench()})
         atomic_write_text(out / "summary.json", json.dumps(self.summary, indent=2) + "\n")
         written = [out / "results.npz", out / "summary.json"]
         stems = _figure_stems(figures)

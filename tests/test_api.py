@@ -57,6 +57,14 @@ def test_write_puts_the_summary_and_the_log_on_disk(short_run: hs.Run, tmp_path:
     assert json.loads((tmp_path / "out" / "summary.json").read_text()) == json.loads(json.dumps(short_run.summary))
     with np.load(tmp_path / "out" / "results.npz") as z:
         assert np.array_equal(z["T"], short_run.log["T"])
+        # the transmitted joint wrenches: their moment about each joint's axis is the joint's applied torque
+        # (1e-6 N m: the weld engine's dynamics close to round-off, ~1e-11)
+        hm = short_run.hm
+        from humanoid_sim.dynamics.joint_loads import joint_axes
+
+        axes = joint_axes(hm.model, [hm.model.getJointId(n) for n in z["theta_names"]])
+        torsion = np.einsum("nmk,mk->nm", z["joint_wrench"][:, :, 3:], axes)
+        assert np.abs(torsion - z["tau"][:, hm.theta_v_idx]).max() < 1e-6
 
 
 @pytest.mark.parametrize("kwargs, match", [
