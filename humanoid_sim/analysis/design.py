@@ -23,8 +23,9 @@ Definitions (SI units; per joint = per thesis joint variable theta_i, a revolute
   counted per range bin and scaled to one kilometre of walking at this gait;
 - settling: on real ground (MuJoCo) the robot starts at rest with its soles just touching a soft ground, which
   pushes back within the first milliseconds (sim3_zmp: the right toe spins at 16 rad/s and the right ankle takes
-  226 W at t = 1 ms).  That is the start of the simulation, not of a walk: the numbers above exclude the first
-  ``settling_s`` (:data:`SETTLING_S` on MuJoCo, 0 on welded feet) and the card reports its peaks apart.
+  226 W at t = 1 ms).  That is the start of the simulation, not of a walk: the numbers above exclude the engine's
+  settling window (on MuJoCo ten contact time constants, 0.05 s: :func:`humanoid_sim.engines.mujoco.ground.
+  settling_time`; none on welded feet) and the card reports its peaks apart.
 
 The thesis's actuator torques T (eq. 4.69, Cartesian components of a joint's moment) keep their own peaks in the
 summary (``torque_peak_Nm``, against their saturation limits); at the spherical joints (ankles, hips, waist, neck)
@@ -47,10 +48,6 @@ GRAVITY = 9.81
 
 FATIGUE_BINS = 10
 """Range bins of the fatigue table: equal tenths of each joint's largest range."""
-
-SETTLING_S = 0.05
-"""s: the start-up window excluded from a MuJoCo walk's design numbers: the soft contact's response to the robot set
-down at rest (MuJoCo's default contact time constant is 0.02 s; two and a half of them)."""
 
 LOAD_CASE_KEYS = ("axial_N", "shear_N", "torsion_Nm", "bending_Nm")
 """The criteria a joint's worst load cases are picked by (largest magnitude of each)."""
@@ -139,8 +136,8 @@ def design_card(trace: Trace, log: dict[str, np.ndarray], hm: HumanoidModel, set
         trace: the run's full-rate trace (``SimResult.trace``).
         log: the run's log arrays (``SimLog.arrays()``): the toe points at phase changes give the distance.
         hm: the robot model.
-        settling_s: the start-up window to leave out of the walk's numbers and report apart, s
-            (:data:`SETTLING_S` for an engine with real contact).
+        settling_s: the start-up window to leave out of the walk's numbers and report apart, s (the engine's
+            settling window on real ground, 0 on welded feet).
 
     Returns:
         The :class:`DesignCard`.

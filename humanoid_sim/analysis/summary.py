@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -77,8 +78,11 @@ def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, A
 
 
 def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[str]) -> tuple[dict[str, Any], Any]:
-    """The ``contact`` section of summary.json and the :class:`humanoid_sim.analysis.audit.AuditReport` behind it (None,
-    and ``{"error": message}``, when the log is inconsistent with the phase contact sets).
+    """The ``contact`` section of summary.json and the :class:`humanoid_sim.analysis.audit.AuditReport` of the log's
+    steps for the figures (None, and ``{"error": message}``, when the log is inconsistent with the phase contact
+    sets).  The section judges every integration step (the full-rate trace, when the engine records one: its
+    ``rate`` says which); on real ground each foot's polygon is the hull of both sole parts
+    (:func:`humanoid_sim.analysis.audit.audit_results`, ``real_ground``).
 
     The section is :meth:`humanoid_sim.analysis.audit.AuditReport.summary` (its fractions judge edges with
     :data:`EDGE_VERDICT_TOL_M` and skip the unloaded steps), plus what the engine measured on the ground: ``landing``
@@ -88,12 +92,22 @@ def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[s
     sliding events)."""
     from humanoid_sim.analysis.audit import AuditError, audit_results
 
+    real_ground = "ground" in result.extra   # an engine with real contact (MuJoCo) reports its ground measures
+    mu = scenario.contact.friction_coefficient
     try:
-        report = audit_results({**result.log.arrays(), "phase_names": np.array(phase_names)}, hm,
-                               scenario.contact.friction_coefficient)
+        report = audit_results({**result.log.arrays(), "phase_names": np.array(phase_names)}, hm, mu, real_ground)
+        full = report
+        trace = result.trace
+        if trace is not None and trace.source == "engine" and len(trace):   # the section over every step
+            full = audit_results({**trace.columns, "phase_names": np.array(phase_names)}, hm, mu, real_ground)
     except AuditError as exc:
         return {"error": str(exc)}, None
-    out = report.summary()
+    if real_ground:   # soft ground: contacts act below z = 0, which moves their CoP on z = 0 (real_ground_edge_tol)
+        tol = real_ground_edge_tol(mu, result.extra["ground"])
+        report, full = replace(report, edge_tol=tol), (report if full is report else replace(full, edge_tol=tol))
+    out = full.summary()
+    out["rate"] = {"period_s": trace.period_s if full is not report else None,
+                   "rows": len(full.t), "source": "full-rate trace" if full is not report else "log"}
     if "landings" in result.extra:   # an engine that welds landing feet: what each touchdown did (landing.py)
         from humanoid_sim.engines.landing import landing_summary
 
@@ -103,6 +117,18 @@ def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[s
         if key in ground:
             out[key] = ground[key]
     return out, report
+
+
+def real_ground_edge_tol(mu: float, ground: dict[str, Any]) -> float:
+    """The edge tolerance of the audit on soft (MuJoCo's) ground, m: :data:`EDGE_VERDICT_TOL_M` plus mu times the
+    run's deepest penetration.  A foot's centre of pressure is defined on the plane z = 0, while soft ground's contact
+    forces act at their contact points up to the penetration depth p below it; a force whose tangential part is r
+    times its normal part (r <= mu inside the cone) then puts that CoP r p from its contact point, outside the sole's
+    footprint when the contact is on an edge.  Measured: a trailing toe sliding at r = 0.72 during a 4.2 mm
+    penetration on sim1_zmp put its CoP 1.4 mm past the edge."""
+    depth = max(float(ground.get("penetration_max_m") or 0.0),
+                float((ground.get("settling") or {}).get("penetration_max_m") or 0.0))
+    return EDGE_VERDICT_TOL_M + mu * depth
 
 
 def summarize_with_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
@@ -131,15 +157,16 @@ def summary_audit_design(result: SimResult, scenario: Any, engine: str, hm: Any,
     """:func:`summary_and_audit` plus the design numbers (:func:`humanoid_sim.analysis.design.design_card`) as the
     summary's ``design`` section; returns (summary, audit report, design card or None without a step).  On an
     engine with real contact the start-up settling is left out of the design numbers and reported apart."""
-    from humanoid_sim.analysis.design import SETTLING_S, design_card
+    from humanoid_sim.analysis.design import design_card
 
     summary = summarize(result, scenario.name, engine)
     summary["contact"], report = contact_audit(result, scenario, hm, phase_names)
     summary.update(feasibility(summary))
     card = None
     if result.trace is not None and len(result.trace):
-        real_ground = "ground" in result.extra   # an engine with real contact starts by settling on it
-        card = design_card(result.trace, result.log.arrays(), hm, SETTLING_S if real_ground else 0.0)
+        # an engine with real contact starts by settling on it: the walk's numbers start after that window
+        settling = result.extra.get("ground", {}).get("settling", {}).get("window_s", 0.0)
+        card = design_card(result.trace, result.log.arrays(), hm, settling)
         summary["design"] = card.summary()
     return summary, report, card
 
@@ -150,7 +177,7 @@ EDGE_VERDICT_TOL_M = EDGE_TOL_M
 """m: a centre of pressure up to this far outside its sole's edge still counts as on the sole, in the feasibility
 verdict and in the audit's fractions: the one edge tolerance, :data:`humanoid_sim.analysis.audit.EDGE_TOL_M` (1 mm;
 its docstring gives the measurements). A foot pivoting on an edge of MuJoCo's soft ground puts its CoP just past
-the edge (up to 0.1 mm measured); a walk that needs ground beyond its soles misses by centimetres."""
+the edge (3-25 um measured); a walk that needs ground beyond its soles misses by centimetres."""
 
 
 def feasibility(summary: dict[str, Any]) -> dict[str, Any]:

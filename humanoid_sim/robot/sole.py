@@ -130,17 +130,19 @@ def _project(M: pin.SE3, corners: np.ndarray) -> np.ndarray:
     return convex_hull(world[:, :2])
 
 
-def sole_polygons(hm: Any, q: np.ndarray, kind: np.ndarray, sole: SoleGeometry | None = None
-                  ) -> list[list[np.ndarray | None]]:
+def sole_polygons(hm: Any, q: np.ndarray, kind: np.ndarray, sole: SoleGeometry | None = None,
+                  articulated: bool = False) -> list[list[np.ndarray | None]]:
     """World sole polygons (x, y on z = 0, m) of the feet in contact at each step, from the logged configurations
     ``q`` (N, nq): the whole sole carried by O_3 / O_4 for a flat foot, the toe part carried by O_1 / O_2 for a
-    foot held by its toe."""
+    foot held by its toe.  ``articulated``: for every foot in contact, the convex hull of both parts' footprints at
+    their own poses (the heel part on O_3 / O_4, the toe part on O_1 / O_2) instead -- on real ground either part
+    may carry load whatever the phase assumes, and a foot's centre of pressure lies in the hull of its contacts."""
     sole = sole or SoleGeometry.from_model(hm)
     model = hm.model
     data = model.createData()
     fid = {f: model.getFrameId(getattr(FOOT_SPECS[foot], a)) for foot in FEET
            for f, a in ((f"{foot}main", "main_frame"), (f"{foot}toe", "toe_frame"))}
-    flat, toe = sole.flat_corners(), sole.toe_corners()
+    flat, toe, heel = sole.flat_corners(), sole.toe_corners(), sole.heel_corners()
     q = np.asarray(q, dtype=float)
     if q.ndim != 2 or q.shape[1] != model.nq or len(q) != len(kind):
         raise SoleError(f"q: expected shape ({len(kind)}, {model.nq}), got {q.shape}")
@@ -150,7 +152,11 @@ def sole_polygons(hm: Any, q: np.ndarray, kind: np.ndarray, sole: SoleGeometry |
         if np.any(kind[k] != NONE) and np.all(np.isfinite(q[k])):
             pin.framesForwardKinematics(model, data, q[k])
             for i, foot in enumerate(FEET):
-                if kind[k, i] == FLAT:
+                if articulated and kind[k, i] != NONE:
+                    M_heel, M_toe = data.oMf[fid[f"{foot}main"]], data.oMf[fid[f"{foot}toe"]]
+                    row[i] = convex_hull(np.vstack([(heel @ M_heel.rotation.T + M_heel.translation)[:, :2],
+                                                    (toe @ M_toe.rotation.T + M_toe.translation)[:, :2]]))
+                elif kind[k, i] == FLAT:
                     row[i] = _project(data.oMf[fid[f"{foot}main"]], flat)
                 elif kind[k, i] == TOE:
                     row[i] = _project(data.oMf[fid[f"{foot}toe"]], toe)

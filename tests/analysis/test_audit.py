@@ -188,6 +188,88 @@ def test_per_phase_totals():
     assert s["per_phase"]["RFFSSP"]["steps"] == 2
 
 
+# --------------------------------------------------------------------------------------------- edges, unloaded steps
+def test_edges_are_judged_with_the_stated_tolerance():
+    """A CoP or ZMP up to EDGE_TOL_M (1 mm) past the edge counts as on it; beyond, as outside; the margins keep the
+    raw distance.  The feasibility verdict reads the same constant."""
+    from humanoid_sim.analysis.audit import EDGE_TOL_M
+    from humanoid_sim.analysis.summary import EDGE_VERDICT_TOL_M
+
+    assert EDGE_VERDICT_TOL_M is EDGE_TOL_M and EDGE_TOL_M == 1e-3
+    x = [1.0 + 0.5 * EDGE_TOL_M, 1.0 + 1.5 * EDGE_TOL_M]           # a pivoting foot's few um, then 1.5 mm out
+    rep = one_foot([wrench_at((xi, 0.5), (0, 0, 500)) for xi in x])
+    np.testing.assert_allclose(rep.cop_margin[:, 0], [-0.5 * EDGE_TOL_M, -1.5 * EDGE_TOL_M], atol=TIGHT)
+    assert rep.cop_outside[:, 0].tolist() == [False, True] and rep.zmp_outside.tolist() == [False, True]
+    s = rep.summary()
+    assert s["cop_outside_fraction"]["R"] == s["zmp_outside_fraction"] == s["infeasible_fraction"] == 0.5
+    assert s["min_cop_margin_m"]["R"] == pytest.approx(-1.5 * EDGE_TOL_M, abs=TIGHT)
+    assert s["edge_tolerance_m"] == EDGE_TOL_M
+
+
+def test_steps_before_contact_are_unloaded():
+    """A double support (R flat on the unit square, L toe on it moved 2 m along x): real ground's first step (no
+    force yet: no CoP, no ZMP) and a step where the feet carry 15 N in all, the left toe's 5 N far outside its sole
+    (and the ZMP outside the support), between steps carrying 540 N inside.  Below a 27 N bound those two are
+    unloaded: counted apart and judged by no check (no fraction, extremum or mask counts them), while the steps
+    are still counted; without the bound they fail the ZMP check and the light one the left CoP check."""
+    right, left = UNIT, UNIT + [2.0, 0.0]
+    inside = [wrench_at((0.5, 0.5), (0, 0, 270)), wrench_at((2.5, 0.5), (0, 0, 270))]
+    W = np.array([[np.zeros(6), np.zeros(6)], inside,
+                  [wrench_at((0.5, 0.5), (0, 0, 10)), wrench_at((2.5, 9.0), (0, 0, 5))], inside])
+    kind = np.tile([FLAT, TOE], (4, 1))
+
+    def audit(**kwargs):
+        return audit_contacts(np.arange(4) * 0.01, ["RFFDSP"] * 4, W, kind, [[right, left]] * 4, 0.8, **kwargs)
+
+    bare = audit().summary()
+    assert bare["zmp_outside_fraction"] == 0.5 and bare["cop_outside_fraction"]["L"] == 0.25
+    assert bare["unloaded_steps"] == 0 and bare["unloaded_below_N"] is None
+    rep = audit(unloaded_below_N=27.0)
+    assert rep.unloaded.tolist() == [True, False, True, False]
+    assert not (rep.zmp_outside.any() or rep.cop_outside.any() or rep.friction_exceeded.any() or rep.pulling.any())
+    s = rep.summary()
+    assert s["unloaded_steps"] == 2 and s["unloaded_below_N"] == 27.0 and s["steps"] == 4
+    assert s["contact_steps"] == {"R": 4, "L": 4}
+    assert s["zmp_outside_fraction"] == s["infeasible_fraction"] == 0.0
+    assert s["cop_outside_fraction"] == {"R": 0.0, "L": 0.0}
+    assert s["min_normal_force_N"] == {"R": 270.0, "L": 270.0}             # over the loaded steps
+    assert s["min_cop_margin_m"]["L"] == pytest.approx(0.5, abs=TIGHT)
+    assert s["per_phase"]["RFFDSP"]["unloaded_steps"] == 2
+
+
+def test_a_loaded_step_is_judged_whatever_its_feet_do():
+    """The bound reads both feet's total: a foot pulling 10 N while the other pushes 300 N is a loaded step, and its
+    weld pulls (infeasible); a non-finite total is not below the bound: judged, and it fails."""
+    W = np.zeros((2, 2, 6))
+    W[0, 0], W[0, 1] = wrench_at((0.5, 0.5), (0, 0, 300)), wrench_at((2.5, 0.5), (0, 0, -10))
+    W[1, 0], W[1, 1] = wrench_at((0.5, 0.5), (0, 0, 300)), np.full(6, np.nan)
+    kind = np.tile([FLAT, TOE], (2, 1))
+    rep = audit_contacts(np.array([0.0, 0.01]), ["RFFDSP"] * 2, W, kind, [[UNIT, UNIT + [2.0, 0.0]]] * 2, 0.8,
+                         unloaded_below_N=27.0)
+    assert not rep.unloaded.any()
+    s = rep.summary()
+    assert s["pulling_fraction"]["L"] == 1.0 and s["infeasible_fraction"] == 1.0 and s["unloaded_steps"] == 0
+    with pytest.raises(AuditError, match="unloaded_below_N"):
+        audit_contacts(np.zeros(1), ["RFFSSP"], W[:1], kind[:1], [[UNIT, UNIT]], 0.8, unloaded_below_N=-1.0)
+
+
+def test_audit_results_bounds_unloaded_steps_by_the_robots_weight(hm):
+    """audit_results: a step is unloaded below UNLOADED_WEIGHT_FRACTION (5 %) of the robot's weight (27 N)."""
+    from humanoid_sim.analysis.audit import UNLOADED_WEIGHT_FRACTION, robot_weight
+
+    weight = robot_weight(hm)
+    assert weight == pytest.approx(pin.computeTotalMass(hm.model) * 9.81, rel=1e-12)
+    bound = UNLOADED_WEIGHT_FRACTION * weight
+    q = np.tile(hm.initial_q(), (3, 1))
+    W = np.zeros((3, 2, 6))
+    W[1, 1, 2], W[2, 1, 2] = 0.99 * bound, 1.01 * bound
+    res = {"t": np.arange(3) * 0.01, "phase": np.zeros(3, dtype=int), "q": q, "foot_wrench": W,
+           "in_contact": np.array([[False, True]] * 3), "phase_names": np.array(["LFFSSP"])}
+    rep = audit_results(res, hm, 0.8)
+    assert rep.unloaded.tolist() == [True, True, False] and rep.unloaded_below_N == pytest.approx(bound, rel=1e-15)
+    assert rep.summary()["unloaded_steps"] == 2
+
+
 def test_inconsistent_inputs_raise():
     W = np.zeros((1, 2, 6))
     with pytest.raises(AuditError, match="polygon missing"):

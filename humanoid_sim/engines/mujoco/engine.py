@@ -65,10 +65,12 @@ allow a few units in the last place where pinocchio's or NumPy's own rounding en
 ``tests/test_mujoco_compiled.py``).
 
 summary.json gains (``run_info``): ``fell``, ``fall_time_s``, ``fall_reason``, ``foot_slip_max_m`` (largest
-horizontal travel of a sole box's corners while that box stays loaded, over both feet and the whole run),
+horizontal travel of a sole box's corners while that box stays loaded, over both feet and the walk after the
+start-up settling window, :mod:`humanoid_sim.engines.mujoco.ground`),
 ``foot_tilt_max_rad`` (largest tilt of a foot's main body while it carries load: a trailing foot rolling onto its
 toe counts), ``stance_tilt_max_rad`` (the same for the foot the phase holds flat, the stance foot only),
-``penetration_max_m``.
+``penetration_max_m`` (all after the settling window), and the ground's ``settling`` and ``sliding`` reports
+(:meth:`humanoid_sim.engines.mujoco.ground.GroundMeter.report`).
 """
 
 from __future__ import annotations
@@ -562,7 +564,7 @@ class MujocoEngine:
                            "stance_tilt_max_rad": float(g.stance_tilt_max),
                            "penetration_max_m": float(g.penetration_max),
                            "control_period_s": self.settings.control_period_s,
-                           "timestep_s": self.sim.timestep}}
+                           "timestep_s": self.sim.timestep, **g.report()}}
 
     # ------------------------------------------------------------------ what the phase selector reads
     def hip_com(self) -> np.ndarray:
