@@ -237,7 +237,8 @@ class Run:
 
             written += write_design(self.design, out, trace=self.result.trace if full_rate else None,
                                     figures=[s for s in stems if s.startswith("sizing")], title=self.scenario.name,
-                                    engine=self.engine)
+                                    engine=self.engine,
+                                    motors=None if self.scenario.actuators is None else self.scenario.actuators.motors)
             stems = tuple(s for s in stems if not s.startswith("sizing"))
         html: list[Path] = []
 

@@ -42,6 +42,7 @@ from humanoid_sim.dynamics.joint_loads import JointLoads, fext_from_body_wrenche
 from humanoid_sim.interfaces.trace import Trace
 from humanoid_sim.robot.actuators import GROUPS, T_NAMES, Actuators
 from humanoid_sim.robot.model import THETA_NAMES, HumanoidModel
+from humanoid_sim.robot.motors import MotorSpec
 
 GRAVITY = 9.81
 """m/s^2, for the cost of transport's weight (the model's own gravity is the same magnitude)."""
@@ -82,6 +83,9 @@ class DesignCard(NamedTuple):
         settling: the start-up window's length and its peaks per joint (torque, speed, power), reported apart.
         load_cases: per joint and criterion the worst instant: time, wrench in the joint frame, configuration.
         series: the full-rate series the figures draw (t, torque, speed, power: (n, 26) each).
+        actuators: with the scenario's motors, per motored joint the motor's verdict over the walk
+            (:func:`motor_section`), the walk's electrical energy and cost of transport, where the envelope fell
+            short; None without motors.
     """
 
     joints: list[dict[str, Any]]
@@ -91,12 +95,16 @@ class DesignCard(NamedTuple):
     load_cases: dict[str, Any]
     series: dict[str, np.ndarray]
     settling: dict[str, Any]
+    actuators: dict[str, Any] | None = None
 
     def summary(self) -> dict[str, Any]:
         """The ``design`` section of summary.json (JSON types; the load cases and fatigue go to their own files)."""
-        return {"definitions": "humanoid_sim.analysis.design (docs: outputs, 'The sizing card')",
-                "rates": self.rates, "walk": self.walk, "settling": self.settling,
-                "joints": {row["joint"]: {k: v for k, v in row.items() if k != "joint"} for row in self.joints}}
+        out = {"definitions": "humanoid_sim.analysis.design (docs: outputs, 'The sizing card')",
+               "rates": self.rates, "walk": self.walk, "settling": self.settling,
+               "joints": {row["joint"]: {k: v for k, v in row.items() if k != "joint"} for row in self.joints}}
+        if self.actuators is not None:
+            out["actuators"] = self.actuators
+        return out
 
 
 def _f(x: Any) -> float | None:
@@ -129,7 +137,9 @@ def rainflow_table(series: np.ndarray, per_km: float, bins: int = FATIGUE_BINS) 
     return [(float(lo), float(hi), float(n) * per_km) for lo, hi, n in zip(edges[:-1], edges[1:], counts)]
 
 
-def design_card(trace: Trace, log: dict[str, np.ndarray], hm: HumanoidModel, settling_s: float = 0.0) -> DesignCard:
+def design_card(trace: Trace, log: dict[str, np.ndarray], hm: HumanoidModel, settling_s: float = 0.0,
+                motors: dict[str, MotorSpec] | None = None,
+                shortfalls: list[dict[str, Any]] | None = None) -> DesignCard:
     """The design numbers of a run (module docstring).
 
     Args:
@@ -138,6 +148,8 @@ def design_card(trace: Trace, log: dict[str, np.ndarray], hm: HumanoidModel, set
         hm: the robot model.
         settling_s: the start-up window to leave out of the walk's numbers and report apart, s (the engine's
             settling window on real ground, 0 on welded feet).
+        motors: the scenario's motors by thesis joint variable (:mod:`humanoid_sim.scenario.actuators`), or None.
+        shortfalls: where the motors' envelopes clipped the controller (``SimResult.extra["actuators"]``).
 
     Returns:
         The :class:`DesignCard`.
@@ -223,8 +235,62 @@ def design_card(trace: Trace, log: dict[str, np.ndarray], hm: HumanoidModel, set
                             "saturated_fraction_per_actuator", "contact"],
              "from_log": ["hip_com_error_*", "hip_yaw_error_rms_rad", "constraint_drift_*", "phase_log"]}
     rates["settling_excluded_s"] = settling_s
+    actuators = None
+    if motors:
+        accel = sign * np.asarray(c["a"])[:, vidx]
+        rotor = np.asarray(model.armature)[vidx] * accel   # the reflected rotor inertia's share of each torque
+        actuators = motor_section(motors, torque, speed, dt, mass, distance, shortfalls or [], rotor)
     return DesignCard(rows, walk, rates, fatigue, cases, {"t": t, "torque": torque, "speed": speed, "power": power},
-                      settling)
+                      settling, actuators)
+
+
+def motor_section(motors: dict[str, MotorSpec], torque: np.ndarray, speed: np.ndarray, dt: float, mass: float,
+                  distance: float, shortfalls: list[dict[str, Any]], rotor: np.ndarray | None = None
+                  ) -> dict[str, Any]:
+    """The sizing card's motor verdicts (:func:`humanoid_sim.robot.motors.assess` per motored joint over the walk:
+    current, RMS current against the continuous rating, winding temperature against its limit, the margins, the
+    electrical energy) and for the walk the electrical energy drawn (no regeneration) and net (regeneration returned)
+    and the electrical cost of transport = energy drawn / (m g distance).
+
+    Args:
+        motors: thesis joint variable -> motor.
+        torque, speed: (n, 26) joint torque (N m, including the rotor's inertia: the models carry the armature) and
+            speed (rad/s), thesis order and sign, every integration step of the walk.
+        dt: the rows' period, s.
+        mass: the robot's mass, kg.
+        distance: the distance walked, m.
+        shortfalls: the drive's records of where an envelope clipped the controller.
+        rotor: (n, 26) the reflected rotor inertia's share of each joint torque, N^2 J_r times the joint's
+            acceleration (N m), or None.
+    """
+    from humanoid_sim.robot.motors import assess
+
+    joints, drawn, net = {}, 0.0, 0.0
+    for j, theta in enumerate(THETA_NAMES):
+        spec = motors.get(theta)
+        if spec is None or not len(torque):
+            continue
+        r = assess(spec, torque[:, j], speed[:, j], dt)
+        joints[theta] = {"motor": spec.name, "peak_current_A": r.peak_current, "rms_current_A": r.rms_current,
+                         "rms_over_continuous": r.rms_ratio, "peak_winding_temperature_C": r.peak_temperature,
+                         "winding_temperature_limit_C": r.temperature_limit, "torque_margin": r.torque_margin,
+                         "speed_margin": r.speed_margin, "current_margin": r.current_margin,
+                         "rms_margin": r.rms_margin, "temperature_margin": r.temperature_margin,
+                         "electrical_energy_drawn_J": r.energy_drawn, "electrical_energy_net_J": r.energy_net,
+                         "outside_envelope_fraction": r.saturated_fraction, "passed": r.passed,
+                         "failures": r.failures, "reflected_inertia_kg_m2": spec.reflected_inertia}
+        if rotor is not None:
+            joints[theta]["rotor_torque_peak_Nm"] = _f(np.abs(rotor[:, j]).max())
+            joints[theta]["rotor_torque_rms_Nm"] = _f(np.sqrt(np.mean(rotor[:, j] ** 2)))
+        drawn += r.energy_drawn
+        net += r.energy_net
+    failing = [f"{th} ({v['motor']}): {'; '.join(_why(v, motors[th]))}" for th, v in joints.items()
+               if not v["passed"]]
+    return {"joints": joints, "passed": not failing and not shortfalls, "failing": failing,
+            "envelope_shortfalls": shortfalls, "electrical_energy_drawn_J": drawn, "electrical_energy_net_J": net,
+            "electrical_cost_of_transport": drawn / (mass * GRAVITY * distance) if distance > 0.05 else None,
+            "electrical_cost_of_transport_definition": "electrical energy drawn by the motors, no regeneration, / "
+                                                       "(m g distance travelled)"}
 
 
 def _settling(c: dict[str, np.ndarray], rows: np.ndarray, hm: HumanoidModel, settling_s: float) -> dict[str, Any]:
@@ -239,6 +305,25 @@ def _settling(c: dict[str, np.ndarray], rows: np.ndarray, hm: HumanoidModel, set
     out["ground_force_vertical_peak_N"] = _f(np.asarray(c["foot_wrench"])[rows][:, :, 2].sum(axis=1).max())
     out["joints"] = {th: {"torque_peak_Nm": _f(np.abs(tq[:, j]).max()), "speed_peak_rad_s": _f(np.abs(sp[:, j]).max()),
                           "power_peak_W": _f(pw[:, j].max())} for j, th in enumerate(THETA_NAMES)}
+    return out
+
+
+def _why(v: dict[str, Any], spec: MotorSpec) -> list[str]:
+    """A failing motor's checks in words, with the numbers behind each margin."""
+    out = []
+    if v["torque_margin"] < 0:
+        out.append(f"torque beyond its envelope by up to {-v['torque_margin'] * spec.stall_torque:.2g} N m "
+                   f"({100 * v['outside_envelope_fraction']:.1f} % of the steps)")
+    if v["speed_margin"] < 0:
+        out.append(f"speed beyond its no-load speed {spec.no_load_speed:.3g} rad/s")
+    if v["current_margin"] < 0:
+        out.append(f"peak current {v['peak_current_A']:.3g} A above its limit {spec.peak_current:g} A")
+    if v["rms_margin"] < 0:
+        out.append(f"RMS current {v['rms_current_A']:.3g} A, {v['rms_over_continuous']:.2f} x its continuous rating "
+                   f"{spec.continuous_current:g} A (it overheats on a longer walk)")
+    if v["temperature_margin"] < 0:
+        out.append(f"winding at {v['peak_winding_temperature_C']:.1f} C, above its limit "
+                   f"{spec.max_winding_temperature:g} C")
     return out
 
 
@@ -257,4 +342,5 @@ def _binding(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
             "margin_fraction": r["torque_margin_Nm"] / r["limit_Nm"]}
 
 
-__all__ = ["DesignCard", "design_card", "joint_label", "joint_limits", "rainflow_table", "walk_distance"]
+__all__ = ["DesignCard", "design_card", "joint_label", "joint_limits", "motor_section", "rainflow_table",
+           "walk_distance"]

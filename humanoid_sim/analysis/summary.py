@@ -166,7 +166,10 @@ def summary_audit_design(result: SimResult, scenario: Any, engine: str, hm: Any,
     if result.trace is not None and len(result.trace):
         # an engine with real contact starts by settling on it: the walk's numbers start after that window
         settling = result.extra.get("ground", {}).get("settling", {}).get("window_s", 0.0)
-        card = design_card(result.trace, result.log.arrays(), hm, settling)
+        motors = scenario.actuators.motors if getattr(scenario, "actuators", None) is not None else None
+        drive = result.extra.get("actuators") or {}
+        card = design_card(result.trace, result.log.arrays(), hm, settling, motors,
+                           drive.get("envelope_shortfalls"))
         summary["design"] = card.summary()
     return summary, report, card
 

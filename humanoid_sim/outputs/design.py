@@ -7,7 +7,8 @@
   the whole 6-axis wrench in the joint frame, the configuration q (Pinocchio's order);
 - ``trace.npz`` (on request): the full-rate trace's signals, with ``period_s`` and ``source``;
 - ``sizing_legs.png`` / ``sizing_upper.png``: per joint axis the torque-speed operating points at every step over
-  the torque limit (dashed), the peak (red ring) and the RMS torque (dotted); beside each, the power over time.
+  the torque limit (dashed; for a joint with a motor, the motor's torque-speed envelope), the peak (red ring) and
+  the RMS torque (dotted); beside each, the power over time.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import numpy as np
 from humanoid_sim.analysis.design import DesignCard
 from humanoid_sim.interfaces.log import atomic_write_bytes, atomic_write_text
 from humanoid_sim.interfaces.trace import Trace
+from humanoid_sim.robot.motors import MotorSpec
 
 SIZING_FIGURES: dict[str, tuple[str, ...]] = {
     "sizing_legs": ("toe", "ankle", "knee", "hip"),
@@ -42,7 +44,7 @@ def _csv(rows: list[dict], path: Path) -> Path:
 
 
 def write_design(card: DesignCard, out: Path, *, trace: Trace | None = None, figures: Sequence[str] = (),
-                 title: str = "", engine: str = "") -> list[Path]:
+                 title: str = "", engine: str = "", motors: dict[str, MotorSpec] | None = None) -> list[Path]:
     """Write the sizing card's files into ``out`` (module docstring).
 
     Args:
@@ -52,6 +54,7 @@ def write_design(card: DesignCard, out: Path, *, trace: Trace | None = None, fig
         figures: the sizing figures to draw (names of :data:`SIZING_FIGURES`).
         title: the scenario's name, for the figures' titles.
         engine: the engine's name, for the figures' titles.
+        motors: the scenario's motors by thesis joint variable (their envelopes in the figures), or None.
 
     Returns:
         The paths written.
@@ -66,13 +69,16 @@ def write_design(card: DesignCard, out: Path, *, trace: Trace | None = None, fig
         atomic_write_bytes(out / "trace.npz", buf.getvalue())
         written.append(out / "trace.npz")
     for name in figures:
-        written.append(plot_sizing(card, out / f"{name}.png", SIZING_FIGURES[name], f"{title} on {engine}"))
+        written.append(plot_sizing(card, out / f"{name}.png", SIZING_FIGURES[name], f"{title} on {engine}", motors))
     return written
 
 
-def plot_sizing(card: DesignCard, path: Path, groups: Sequence[str], title: str) -> Path:
+def plot_sizing(card: DesignCard, path: Path, groups: Sequence[str], title: str,
+                motors: dict[str, MotorSpec] | None = None) -> Path:
     """One sizing figure: a row per joint axis of the ``groups`` (by word in the actuator's name) with its
-    torque-speed operating points and its power over time (module docstring)."""
+    torque-speed operating points and its power over time (module docstring); a joint with a motor (``motors``, by
+    thesis joint variable) shows the motor's torque-speed envelope instead of the thesis's limit."""
+    motors = motors or {}
     import matplotlib
 
     matplotlib.use("Agg")
@@ -89,14 +95,25 @@ def plot_sizing(card: DesignCard, path: Path, groups: Sequence[str], title: str)
         tq, sp, pw = s["torque"][:, j], s["speed"][:, j], s["power"][:, j]
         ax_op.plot(sp, tq, ",", color="tab:blue", alpha=0.5, rasterized=True)
         lim = r["limit_Nm"]
-        if lim:
+        spec = motors.get(r["joint"])
+        if spec is not None:   # the motor's torque-speed envelope over the walk's speeds
+            from humanoid_sim.robot.motors import torque_envelope
+
+            lo, hi = float(np.min(sp)), float(np.max(sp))
+            w = np.linspace(lo - 0.2 * (hi - lo + 1e-9), hi + 0.2 * (hi - lo + 1e-9), 200)
+            env = torque_envelope(spec, w)
+            ax_op.plot(w, env.tau_max, "k--", lw=0.8)
+            ax_op.plot(w, env.tau_min, "k--", lw=0.8)
+            lim = spec.stall_torque
+        elif lim:
             for sign in (1, -1):
                 ax_op.axhline(sign * lim, color="k", ls="--", lw=0.8)
         i = int(np.argmax(np.abs(tq)))
         ax_op.plot(sp[i], tq[i], "o", mfc="none", mec="tab:red", ms=7)
         for sign in (1, -1):
             ax_op.axhline(sign * (r["torque_rms_Nm"] or 0.0), color="tab:green", ls=":", lw=1.0)
-        ax_op.set_title(f"{r['label']}: peak {r['torque_peak_Nm']:.1f} / {lim or float('nan'):.0f} N m, "
+        what = f"motor {spec.name}, stall" if spec is not None else "limit"
+        ax_op.set_title(f"{r['label']}: peak {r['torque_peak_Nm']:.1f} N m ({what} {lim or float('nan'):.0f}), "
                         f"rms {r['torque_rms_Nm']:.1f}", fontsize=7.5)
         ax_op.set_xlabel("speed [rad/s]", fontsize=7)
         ax_op.set_ylabel("torque [N m]", fontsize=7)

@@ -7,6 +7,8 @@ Sections:
 - ``controller``: the thesis controller's Appendix B weights (:mod:`.thesis_controller`); required only when the
   thesis controller runs;
 - ``balance``: the balance controller's settings (:mod:`.balance`); optional, documented defaults;
+- ``actuators``: a motor and gearbox per joint from a sourced catalogue (:mod:`.actuators`); optional: without it
+  every joint is the thesis's torque source;
 - ``controller_class`` and ``controller_settings``: a user's controller (``package.module:ClassName``) and its own
   settings, passed to its ``setup`` as ``ControlContext.settings``;
 - ``reset``: the touchdown weights W_adj of eqs. 4.97/4.100; required only when the thesis impact law is used;
@@ -34,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from humanoid_sim.references.chapter3 import PathParamError, PathParams
+from humanoid_sim.scenario.actuators import ActuatorChoice, parse_actuators
 from humanoid_sim.scenario.balance import BalanceSettings, parse_balance
 from humanoid_sim.scenario.fields import (
     Num,
@@ -49,7 +52,7 @@ from humanoid_sim.scenario.fields import (
 from humanoid_sim.scenario.thesis_controller import ControllerParams, parse_controller
 from humanoid_sim.scenario.yamlio import read_yaml
 
-SECTIONS = ("name", "description", "base", "path", "gait", "controller", "balance", "controller_class",
+SECTIONS = ("name", "description", "base", "path", "gait", "controller", "balance", "actuators", "controller_class",
             "controller_settings", "reset", "simulation", "phase_switch", "contact")
 REQUIRED = ("path",)
 RESET_KEYS = ("Wadj_qdot_LFFSSP_to_RFFDSP", "Wadj_qdot_RFFSSP_to_LFFDSP")
@@ -150,6 +153,7 @@ class Scenario:
         gait: the hip reference and who executes the zmp gait.
         balance: the balance controller's settings.
         controller_settings: a user controller's own section, passed to its ``setup`` as ``ControlContext.settings``.
+        actuators: a motor and gearbox per joint (:mod:`.actuators`), or None for the thesis's torque sources.
     """
 
     name: str
@@ -165,6 +169,7 @@ class Scenario:
     gait: GaitSettings = field(default_factory=GaitSettings)
     balance: BalanceSettings = field(default_factory=BalanceSettings)
     controller_settings: dict[str, Any] = field(default_factory=dict)
+    actuators: ActuatorChoice | None = None
 
     @property
     def runs_thesis_controller(self) -> bool:
@@ -358,9 +363,11 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
     else:
         W_adj = {}
     balance = parse_balance(src, doc.get("balance"))
+    folder = Path(source).parent if source and not source.startswith("<") else None
+    actuators = parse_actuators(src, doc.get("actuators"), folder)
     return Scenario(name=name, description=desc, path=path, controller=controller, W_adj=W_adj, simulation=sim,
                     switch=sw, contact=ct, source=source, controller_class=cc, gait=gait, balance=balance,
-                    controller_settings=user_settings)
+                    controller_settings=user_settings, actuators=actuators)
 
 
 NOT_INHERITED = ("name", "description")

@@ -117,6 +117,17 @@ class _Checked:
         return as_command(out, self.nv, self.name, self.names)
 
 
+class _Driven:
+    """The checked controller's commands passed through the motors (``run``'s ``drive``)."""
+
+    def __init__(self, checked: _Checked, drive: Callable[[Command, Observation], Command]) -> None:
+        self.checked = checked
+        self.drive = drive
+
+    def __call__(self, obs: Observation) -> Command:
+        return self.drive(self.checked(obs), obs)
+
+
 def _travelled(sel: PhaseSelector, toe: np.ndarray) -> bool:
     """The guard of a sensed touchdown: the swing toe has covered more than the geometric rule's share of its
     planned horizontal travel (6.1.1.1's second clause; its height clause is what the sensed contact replaces)."""
@@ -126,12 +137,14 @@ def _travelled(sel: PhaseSelector, toe: np.ndarray) -> bool:
 
 def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scenario: Scenario, q0: np.ndarray,
         t_end: float | None = None, progress: Callable[[float, int], None] | None = None,
-        hold: Phase | None = None) -> SimResult:
+        hold: Phase | None = None, drive: Callable[[Command, Observation], Command] | None = None) -> SimResult:
     """Simulate ``scenario`` on ``engine`` driven by ``controller`` (already set up) from rest at ``q0`` until every
     planned phase is done, ``t_end`` (s), the scenario's end time, or a failure.
 
     ``hold``: stay in this contact phase for the whole run instead of walking the schedule (e.g. ``Phase.RFFDSP`` to
-    test a standing controller in double support); the run then ends at ``t_end``."""
+    test a standing controller in double support); the run then ends at ``t_end``.  ``drive``: the motors between the
+    controller and the engine (:class:`humanoid_sim.sim.drive.Drive`: each command clipped to their envelopes), or
+    None; its ``report()`` goes into ``SimResult.extra["actuators"]``."""
     h = scenario.simulation.step_s
     n_phases = traj.n_phases
     nominal_end = traj.phases[-1].t_end
@@ -139,7 +152,8 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
     errors = RUN_ERRORS + tuple(getattr(engine, "errors", ()))
     hm = getattr(engine, "hm", None)
     names = None if hm is None else CoordinateNames.of(hm)  # joints named in the messages
-    control = _Checked(controller, engine.model.nv, names)
+    checked = _Checked(controller, engine.model.nv, names)
+    control: Callable[[Observation], Command] = checked if drive is None else _Driven(checked, drive)
     t = 0.0
     engine.start(q0, hold if hold is not None else Phase(traj.phases[0].name))
     first_swing = traj.phases[0].swing_foot
@@ -218,14 +232,16 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
         close = getattr(engine, "close", None)
         if close is not None:
             close()
-    extra = {"nominal_end": nominal_end, "engine": engine.name, "controller": control.name}
+    extra = {"nominal_end": nominal_end, "engine": engine.name, "controller": checked.name}
+    if drive is not None:
+        extra["actuators"] = getattr(drive, "report", dict)()
     extra.update(getattr(controller, "run_info", lambda: {})())
     extra.update(getattr(engine, "run_info", lambda: {})())
     names = [p.name for p in traj.phases]
     if hold is not None:
         names[0] = hold.value
     return SimResult(log=log, phases=sel.records, phases_planned=n_phases, completed=completed, reason=reason,
-                     sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps, stage_evaluations=control.calls,
+                     sim_time=t, wall_time=time.perf_counter() - wall0, steps=steps, stage_evaluations=checked.calls,
                      extra=extra, phase_names=names, status=status, error=error, traceback=trace_text,
                      trace=trace)
 

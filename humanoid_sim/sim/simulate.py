@@ -22,6 +22,7 @@ import numpy as np
 from humanoid_sim.controllers.thesis.controller import ThesisController
 from humanoid_sim.engines import make_engine
 from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
+from humanoid_sim.errors import InputError
 from humanoid_sim.interfaces.controller import ControlContext, Controller
 
 # PhaseRecord and SimulationError are part of this module's interface (SimResult.phases, Simulator.run's failures)
@@ -31,6 +32,7 @@ from humanoid_sim.references.zmp.zmp_walk import initial_state, make_trajectory
 from humanoid_sim.robot.model import HumanoidModel
 from humanoid_sim.robot.phases import Phase
 from humanoid_sim.scenario.schema import Scenario
+from humanoid_sim.sim.drive import Drive, with_motors
 from humanoid_sim.sim.loop import SimResult, run
 
 USER_CONTROL_PERIOD_S = 0.001
@@ -91,6 +93,13 @@ class Simulator:
 
     def __init__(self, hm: HumanoidModel, scenario: Scenario, compiled: bool | None = None,
                  engine: str = "pinocchio", controller: Controller | None = None) -> None:
+        self.drive: Drive | None = None
+        if scenario.actuators is not None:   # the motors' rotor inertia in every model, their envelopes on commands
+            if engine == "thesis":
+                raise InputError("actuators: the thesis engine's equations (the NumPy oracle) have no rotor inertia; "
+                                 "expected --engine pinocchio or mujoco for a scenario with motors")
+            hm = with_motors(hm, scenario.actuators)
+            self.drive = Drive(hm, scenario.actuators)
         self.hm = hm
         self.sc = scenario
         self.model = hm.model
@@ -172,7 +181,7 @@ class Simulator:
         """Simulate until every planned phase is done, ``t_end`` (s), the scenario's end time, or a failure
         (``hold``: stay in one contact phase instead, see :func:`humanoid_sim.sim.loop.run`)."""
         return run(self.engine, self.controller, self.traj, self.sc, self.q0, t_end=t_end, progress=progress,
-                   hold=hold)
+                   hold=hold, drive=self.drive)
 
 
 __all__ = ["BASIC", "USER_ARMATURE_KG_M2", "USER_CONTROL_PERIOD_S", "PhaseRecord", "SimResult", "SimulationError",

@@ -120,7 +120,8 @@ class MujocoEngineSettings:
     """Settings of the MuJoCo engine (SI units); the module docstring gives the reasons for the defaults.
 
     ``armature_kg_m2``: rotor inertia reflected on each of the 26 joints (MuJoCo's ``dof_armature``, kg m^2), 0 for
-    the thesis's rigid bodies; a user's controller runs with some (module docstring, "Control rate").
+    the thesis's rigid bodies; a user's controller runs with some (module docstring, "Control rate").  The model's
+    own armature (``hm.model.armature``: the scenario's motors, :mod:`humanoid_sim.scenario.actuators`) is added.
 
     ``contact``: MuJoCo's numerical settings, None = :meth:`MujocoSettings.from_scenario` (defaults with the
     scenario's friction coefficient)."""
@@ -240,6 +241,10 @@ class MujocoEngine:
         self._armature = float(self.settings.armature_kg_m2)
         if self._armature:
             self.mm.model.dof_armature[6:] = self._armature  # the 26 hinge dofs (the free joint's 6 come first)
+        if np.any(hm.model.armature[6:]):   # motors' rotor inertias in the model (scenario actuators): MuJoCo's too
+            for jid in range(2, hm.model.njoints):
+                dof = self.mm.model.joint(hm.model.names[jid]).dofadr[0]
+                self.mm.model.dof_armature[dof] += hm.model.armature[hm.model.idx_vs[jid]]
         self.act = Actuators(hm)
         self.data = hm.model.createData()
         self.rec_data = hm.model.createData()
