@@ -12,6 +12,7 @@ what it was).  With it, each joint named gets a :class:`humanoid_sim.robot.motor
         right_knee: osl_knee         # ... one joint group (humanoid_sim.robot.actuators.GROUPS) ...
         theta11: mini_cheetah_knee   # ... one thesis joint variable; the most specific key wins
         neck: null                   # no motor: the thesis's torque source
+      rotor_inertia: true            # optional: false leaves the rotors' inertia out of the dynamics (a what-if)
 
 What a motor changes (:mod:`humanoid_sim.sim.drive`): its reflected rotor inertia N^2 J_r joins the joint's inertia
 in every engine and in the controllers' models; the joint torque it can give at the joint's speed (its torque-speed
@@ -34,7 +35,7 @@ from humanoid_sim.robot.model import THETA_NAMES
 from humanoid_sim.robot.motors import CATALOGUE, MotorSpec, load_catalogue
 from humanoid_sim.scenario.fields import ScenarioError
 
-KEYS = ("catalogue", "joints")
+KEYS = ("catalogue", "joints", "rotor_inertia")
 """The section's keys."""
 
 
@@ -55,18 +56,24 @@ class ActuatorChoice:
     Attributes:
         motors: thesis joint variable (``theta11``) -> its motor (catalogue name in ``MotorSpec.name``).
         catalogue: the catalogue file the motors come from.
+        rotor_inertia: whether the rotors' reflected inertia joins the dynamics (False: the same motors' envelopes
+            and electrical model on the rigid bodies alone, to see what the rotors change).
     """
 
     motors: dict[str, MotorSpec]
     catalogue: str
+    rotor_inertia: bool = True
 
     def armature(self) -> np.ndarray:
-        """Reflected rotor inertia N^2 J_r per thesis joint variable (26,, eq. 4.1 order), kg m^2; 0 without motor."""
-        return np.array([self.motors[th].reflected_inertia if th in self.motors else 0.0 for th in THETA_NAMES])
+        """Reflected rotor inertia N^2 J_r per thesis joint variable (26,, eq. 4.1 order), kg m^2; 0 without motor
+        (all 0 when :attr:`rotor_inertia` is False)."""
+        return np.array([self.motors[th].reflected_inertia if th in self.motors and self.rotor_inertia else 0.0
+                         for th in THETA_NAMES])
 
     def describe(self) -> dict[str, Any]:
-        """For summary.json: the catalogue and each joint's motor name."""
-        return {"catalogue": self.catalogue, "joints": {th: spec.name for th, spec in self.motors.items()}}
+        """For summary.json: the catalogue, each joint's motor name, and whether the rotors' inertia is in."""
+        return {"catalogue": self.catalogue, "rotor_inertia": self.rotor_inertia,
+                "joints": {th: spec.name for th, spec in self.motors.items()}}
 
 
 def parse_actuators(src: str, raw: object, folder: Path | None = None) -> ActuatorChoice | None:
@@ -83,7 +90,8 @@ def parse_actuators(src: str, raw: object, folder: Path | None = None) -> Actuat
     if raw is None:
         return None
     if not isinstance(raw, dict):
-        raise ScenarioError(f"{src}: actuators: expected a mapping with {' and '.join(KEYS)}, got {raw!r}")
+        raise ScenarioError(f"{src}: actuators: expected a mapping with joints (and optionally catalogue, "
+                            f"rotor_inertia), got {raw!r}")
     for k in raw:
         if k not in KEYS:
             close = difflib.get_close_matches(str(k), KEYS, n=1)
@@ -131,7 +139,10 @@ def parse_actuators(src: str, raw: object, folder: Path | None = None) -> Actuat
             if th not in rank or rank[th][0] <= level:
                 rank[th] = (level, name)
     motors = {th: catalogue[name] for th, (_, name) in rank.items() if name is not None}
-    return ActuatorChoice({th: motors[th] for th in THETA_NAMES if th in motors}, str(path))
+    rotor = raw.get("rotor_inertia", True)
+    if not isinstance(rotor, bool):
+        raise ScenarioError(f"{src}: actuators.rotor_inertia = {rotor!r}: expected true or false")
+    return ActuatorChoice({th: motors[th] for th in THETA_NAMES if th in motors}, str(path), rotor)
 
 
 __all__ = ["ActuatorChoice", "KEYS", "parse_actuators"]

@@ -38,6 +38,8 @@ def test_the_most_specific_key_chooses_each_joints_motor() -> None:
     assert arm[THETA_NAMES.index("theta6")] == cat["mini_cheetah_knee"].gear_ratio ** 2 * \
         cat["mini_cheetah_knee"].rotor_inertia
     assert arm[THETA_NAMES.index("theta25")] == 0.0
+    off = parse_actuators("x.yaml", {"joints": {"all": "mini_cheetah_knee"}, "rotor_inertia": False})
+    assert not off.armature().any() and len(off.motors) == 26
 
 
 @pytest.mark.parametrize("section, words", [
@@ -46,6 +48,7 @@ def test_the_most_specific_key_chooses_each_joints_motor() -> None:
     ({"joint": {"knee": "osl_knee"}}, ["actuators.joint", "did you mean 'joints'"]),
     ({"joints": {}}, ["actuators.joints = {}", "expected a mapping"]),
     ({"catalogue": "missing.yaml", "joints": {"all": "osl_knee"}}, ["actuators.catalogue", "missing.yaml"]),
+    ({"joints": {"all": "osl_knee"}, "rotor_inertia": "yes"}, ["actuators.rotor_inertia = 'yes'", "true or false"]),
 ])
 def test_a_bad_actuators_section_exits_2_naming_the_field(tmp_path: Path, section: dict, words: list[str]) -> None:
     import yaml
