@@ -232,7 +232,7 @@ class Run:
         atomic_write_text(out / "summary.json", json.dumps(self.summary, indent=2) + "\n")
         written = [out / "results.npz", out / "summary.json"]
         stems = _figure_stems(figures)
-        if self.design is not None:
+        if self.design is not None and len(self.result.log):
             from humanoid_sim.outputs.design import write_design
 
             written += write_design(self.design, out, trace=self.result.trace if full_rate else None,

@@ -9,6 +9,7 @@ import numpy as np
 
 from humanoid_sim.robot.actuators import T_NAMES
 from humanoid_sim.sim.simulate import SimResult
+from humanoid_sim.sim.status import RunStatus
 
 
 def _f(x: Any) -> float | None:
@@ -98,7 +99,8 @@ def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[s
         report = audit_results({**result.log.arrays(), "phase_names": np.array(phase_names)}, hm, mu, real_ground)
         full = report
         trace = result.trace
-        if trace is not None and trace.source == "engine" and len(trace):   # the section over every step
+        if trace is not None and trace.source == "engine" and len(trace) and \
+                result.status is not RunStatus.INTERRUPTED:   # the section over every step (not after Ctrl-C)
             full = audit_results({**trace.columns, "phase_names": np.array(phase_names)}, hm, mu, real_ground)
     except AuditError as exc:
         return {"error": str(exc)}, None
@@ -155,15 +157,18 @@ def summary_and_audit(result: SimResult, scenario: Any, engine: str, hm: Any,
 def summary_audit_design(result: SimResult, scenario: Any, engine: str, hm: Any,
                          phase_names: list[str]) -> tuple[dict[str, Any], Any, Any]:
     """:func:`summary_and_audit` plus the design numbers (:func:`humanoid_sim.analysis.design.design_card`) as the
-    summary's ``design`` section; returns (summary, audit report, design card or None without a step).  On an
-    engine with real contact the start-up settling is left out of the design numbers and reported apart."""
+    summary's ``design`` section; returns (summary, audit report, design card: None without a logged step or after
+    Ctrl-C, which answers at once).  On an engine with real contact the start-up settling is left out of the design
+    numbers and reported apart."""
     from humanoid_sim.analysis.design import design_card
 
     summary = summarize(result, scenario.name, engine)
     summary["contact"], report = contact_audit(result, scenario, hm, phase_names)
     summary.update(feasibility(summary))
     card = None
-    if result.trace is not None and len(result.trace):
+    # a run stopped by Ctrl-C answers at once (the card takes a moment); a run without a logged step has no walk
+    if result.trace is not None and len(result.trace) and len(result.log) and result.status is not \
+            RunStatus.INTERRUPTED:
         # an engine with real contact starts by settling on it: the walk's numbers start after that window
         settling = result.extra.get("ground", {}).get("settling", {}).get("window_s", 0.0)
         motors = scenario.actuators.motors if getattr(scenario, "actuators", None) is not None else None

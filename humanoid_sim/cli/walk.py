@@ -279,11 +279,13 @@ def _raised_elsewhere(error: BaseException | None) -> bool:
 
 
 def output_names() -> list[str]:
-    """Every file name walk.py may write into its output folder besides results.npz and summary.json (figures,
-    figures of earlier versions, playback.html)."""
+    """Every file name walk.py may write into its output folder besides results.npz and summary.json: figures,
+    figures of earlier versions, playback.html, the design files and trace.npz."""
+    from humanoid_sim.outputs.design import SIZING_FIGURES
     from humanoid_sim.outputs.plots.thesis import FIGURES, LEGACY_STEMS
 
-    return [f"{stem}.png" for stem in FIGURES + LEGACY_STEMS] + ["playback.html"]
+    return ([f"{stem}.png" for stem in FIGURES + LEGACY_STEMS + tuple(SIZING_FIGURES)]
+            + ["playback.html", "trace.npz", "design.csv", "fatigue.csv", "load_cases.json"])
 
 
 def _remove_stale_outputs(out: Path) -> list[str]:
@@ -301,7 +303,11 @@ def _remove_stale_outputs(out: Path) -> list[str]:
 def _print_outputs(args: argparse.Namespace, out: Path, figures: list[Path], html: Path | None, stale: list[str],
                    steps: int, interrupted: bool = False) -> None:
     written = {p.name for p in figures} | ({html.name} if html is not None else set())
-    parts = ["results.npz", "summary.json"]
+    design = (out / "design.csv").is_file()
+    parts = ["results.npz", "summary.json", "design.csv, fatigue.csv, load_cases.json" if design else
+             "no design files (no step)"]
+    if (out / "trace.npz").is_file():
+        parts.append("trace.npz")
     if figures:
         parts.append(f"{len(figures)} figures (*.png" + (", --figures all for the full set" if args.figures == "quick"
                                                          else "") + ")")
@@ -373,9 +379,22 @@ def _print_summary(s: dict, out: Path) -> None:
               + (f", after {d['rates']['settling_excluded_s']:g} s of settling" if d["rates"]["settling_excluded_s"]
                  else "") + f"): {w['distance_m']:.2f} m walked, positive joint work {w['work_positive_J']:.0f} J, "
               f"mechanical cost of transport {'n/a' if cot is None else f'{cot:.2f}'}; peak vertical ground force "
-              f"{w['ground_force_vertical_peak_N']:.0f} N"
+              + ("n/a" if w["ground_force_vertical_peak_N"] is None else f"{w['ground_force_vertical_peak_N']:.0f} N")
               + ("" if b is None else f"; tightest joint {b['joint']} at {b['torque_peak_Nm']:.1f} of "
                  f"{b['limit_Nm']:g} N m") + " (design.csv)")
+    m = (d or {}).get("actuators")
+    if m is not None:
+        cot = m["electrical_cost_of_transport"]
+        hot = max(m["joints"].items(), key=lambda kv: kv[1]["peak_winding_temperature_C"], default=None)
+        print(f"  motors on {len(m['joints'])} joints: electrical energy {m['electrical_energy_drawn_J']:.0f} J drawn, "
+              f"electrical cost of transport {'n/a' if cot is None else f'{cot:.2f}'}"
+              + ("" if hot is None else f"; hottest winding {hot[0]} {hot[1]['peak_winding_temperature_C']:.1f} C"))
+        for sf in m["envelope_shortfalls"]:
+            print(f"  MOTOR SHORT: {sf['joint']} ({sf['motor']}) could not give the torque asked in "
+                  f"{sf['clipped_calls']} controller calls from t = {sf['first_s']:.3f} s to {sf['last_s']:.3f} s, "
+                  f"worst by {sf['worst_shortfall_Nm']:.1f} N m at t = {sf['worst_at_s']:.3f} s")
+        for fail in m["failing"]:
+            print(f"  MOTOR FAILS: {fail}")
     c = s.get("contact", {})
     if "error" in c:
         print(f"  contact audit failed: {c['error']}")

@@ -6,6 +6,8 @@ with its whole sole when held flat, or with its toe part only (the trailing foot
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from typing import Any
 
@@ -83,18 +85,18 @@ class SoleGeometry:
 
 
 def convex_hull(points: np.ndarray) -> np.ndarray:
-    """Convex hull of 2-D points, counter-clockwise, no repeated or collinear vertices (Andrew's chain)."""
-    pts = np.unique(np.asarray(points, dtype=float).reshape(-1, 2), axis=0)
+    """Convex hull of 2-D points, counter-clockwise, no repeated or collinear vertices (Andrew's chain).  Plain
+    Python floats: the audit builds a few hulls of 4-8 points per logged step, where NumPy's per-call overhead
+    (np.unique alone ~60 us) would dominate."""
+    pts = sorted(set(map(tuple, np.asarray(points, dtype=float).reshape(-1, 2).tolist())))
     if len(pts) <= 2:
-        return pts
+        return np.array(pts, dtype=float).reshape(-1, 2)
 
-    def cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    def half(seq: np.ndarray) -> list[np.ndarray]:
-        h: list[np.ndarray] = []
+    def half(seq: list) -> list:
+        h: list = []
         for p in seq:
-            while len(h) >= 2 and cross(h[-2], h[-1], p) <= 0:
+            while len(h) >= 2 and ((h[-1][0] - h[-2][0]) * (p[1] - h[-2][1])
+                                   - (h[-1][1] - h[-2][1]) * (p[0] - h[-2][0])) <= 0:
                 h.pop()
             h.append(p)
         return h
@@ -105,24 +107,27 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
 
 def signed_distance(point: np.ndarray, polygon: np.ndarray) -> float:
     """Signed distance (m) from a 2-D point to the boundary of a convex polygon (CCW vertices): positive inside,
-    negative outside, NaN for a non-finite point or an empty polygon."""
-    p = np.asarray(point, dtype=float)[:2]
-    P = np.asarray(polygon, dtype=float)
-    if not np.all(np.isfinite(p)) or len(P) == 0:
+    negative outside, NaN for a non-finite point or an empty polygon.  Plain Python floats over the few edges (the
+    audit calls this a few times per step; NumPy's per-call overhead would dominate), each operation in the order of
+    the vectorised form, so the same doubles come out."""
+    px, py = (float(x) for x in np.asarray(point, dtype=float)[:2])
+    P = np.asarray(polygon, dtype=float).tolist()
+    if not (math.isfinite(px) and math.isfinite(py)) or len(P) == 0:
         return float("nan")
-    if len(P) == 1:
-        return -float(np.linalg.norm(p - P[0]))
-    a, b = P, np.roll(P, -1, axis=0)
-    e = b - a
-    L = np.linalg.norm(e, axis=1)
-    keep = L > 0
-    a, e, L = a[keep], e[keep], L[keep]
-    rel = p - a
-    # distance to each edge segment
-    s = np.clip(np.einsum("ij,ij->i", rel, e) / L ** 2, 0.0, 1.0)
-    seg = np.linalg.norm(rel - s[:, None] * e, axis=1)
-    inside = len(P) >= 3 and bool(np.all(e[:, 0] * rel[:, 1] - e[:, 1] * rel[:, 0] >= 0.0))
-    return float(seg.min()) if inside else -float(seg.min())
+    if len(P) == 1:   # a degenerate polygon: NumPy's own norm (a BLAS dot), as ever
+        return -float(np.linalg.norm(np.array([px, py]) - np.asarray(P[0])))
+    best, inside = math.inf, len(P) >= 3
+    for (ax, ay), (bx, by) in zip(P, P[1:] + P[:1]):
+        ex, ey = bx - ax, by - ay
+        L = math.sqrt(ex * ex + ey * ey)
+        if not L > 0:
+            continue
+        rx, ry = px - ax, py - ay
+        t = min(max((rx * ex + ry * ey) / (L * L), 0.0), 1.0)   # nearest point of the segment (NumPy squares by *)
+        dx, dy = rx - t * ex, ry - t * ey
+        best = min(best, math.sqrt(dx * dx + dy * dy))
+        inside = inside and ex * ry - ey * rx >= 0.0
+    return best if inside else -best
 
 
 def _project(M: pin.SE3, corners: np.ndarray) -> np.ndarray:

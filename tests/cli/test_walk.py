@@ -326,9 +326,11 @@ def test_no_stale_outputs_beside_a_new_run(tmp_path, capsys):
         (out / name).write_bytes(b"from an earlier run")
     (out / "my_notes.txt").write_text("mine")
     assert main([str(SIM1), "--out", str(out), "--until", "0.3", "--no-plots", "--no-html", "--quiet"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["my_notes.txt", "results.npz", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["design.csv", "fatigue.csv", "load_cases.json", "my_notes.txt",
+                                                     "results.npz", "summary.json"]
     printed = capsys.readouterr().out
-    assert "results.npz, summary.json, no figures (--no-plots), no playback.html (--no-html)" in printed
+    assert ("results.npz, summary.json, design.csv, fatigue.csv, load_cases.json, no figures (--no-plots), "
+            "no playback.html (--no-html)") in printed
     assert f"removed {len(stale)} outputs of an earlier run" in printed
 
 

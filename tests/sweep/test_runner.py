@@ -25,10 +25,8 @@ import numpy as np
 import pytest
 import yaml
 
-from humanoid_sim.analysis.audit import audit_results
-from humanoid_sim.analysis.summary import feasibility, summarize
+from humanoid_sim.analysis.summary import summary_audit_design
 from humanoid_sim.cli import sweep as cli
-from humanoid_sim.engines.landing import landing_summary
 from humanoid_sim.scenario.schema import parse_scenario
 from humanoid_sim.sim.simulate import Simulator
 from humanoid_sim.sweep import runner
@@ -75,16 +73,12 @@ def sweeps(tmp_path_factory) -> dict[str, Path]:
 
 
 def serial_summary(hm, doc: dict) -> dict:
-    """A walk run in this process the way walk.py runs it (cli._run): simulator, summary, contact audit; plus
-    the RMS torques.  Independent of humanoid_sim.sweep."""
+    """A walk run in this process the way walk.py runs it (cli._run): simulator, summary, contact audit, design
+    card; plus the RMS torques.  Independent of humanoid_sim.sweep."""
     sc = parse_scenario(doc, "serial")
     sim = Simulator(hm, sc)
     result = sim.run()
-    s = summarize(result, sc.name, "pinocchio")
-    s["contact"] = audit_results({**result.log.arrays(), "phase_names": np.array([p.name for p in sim.traj.phases])},
-                                 hm, sc.contact.friction_coefficient).summary()
-    s["contact"]["landing"] = landing_summary(result.extra["landings"], sc.contact.friction_coefficient)
-    s.update(feasibility(s))
+    s = summary_audit_design(result, sc, "pinocchio", hm, [p.name for p in sim.traj.phases])[0]
     T = result.log.arrays()["T"]
     s["torque_rms_Nm"] = dict(zip(s["torque_peak_Nm"], np.sqrt(np.mean(T ** 2, axis=0)).tolist()))
     return s
