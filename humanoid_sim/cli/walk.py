@@ -302,7 +302,8 @@ def _remove_stale_outputs(out: Path) -> list[str]:
 
 def _print_outputs(args: argparse.Namespace, out: Path, figures: list[Path], html: Path | None, stale: list[str],
                    steps: int, interrupted: bool = False) -> None:
-    written = {p.name for p in figures} | ({html.name} if html is not None else set())
+    written = {p.name for p in figures} | ({html.name} if html is not None else set()) | \
+        {name for name in ("design.csv", "fatigue.csv", "load_cases.json", "trace.npz") if (out / name).is_file()}
     design = (out / "design.csv").is_file()
     parts = ["results.npz", "summary.json", "design.csv, fatigue.csv, load_cases.json" if design else
              "no design files (no step)"]
