@@ -7,7 +7,6 @@ with its whole sole when held flat, or with its toe part only (the trailing foot
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 from typing import Any
 
