@@ -12,6 +12,11 @@ every compiled module does before its first ``@njit``:
 
 Stale folders of older sources are left in place (a few MB each); deleting them is always safe.
 
+The functions Python calls with the records of :mod:`humanoid_sim.kernel.records` (NamedTuples of arrays) are
+compiled by :func:`entry` instead of :func:`njit`: numba types every argument of every call, and a NamedTuple costs
+its dispatcher about three times what the same values cost as a plain tuple, so the records cross into numba as
+plain tuples (see :func:`entry`).
+
 This is a root module on purpose: the compiled twins live in several layers (``references``, ``kernel``,
 ``controllers``, ``engines``) and all of them may import it.
 """
@@ -21,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import os
 from pathlib import Path
+from typing import Any
 
 try:
     import numba as _numba
@@ -78,13 +84,52 @@ if _numba is not None:
     _numba.config.CACHE_DIR = str(CACHE_DIR)
 
 
+_OPTIONS: dict[str, Any] = {"nogil": True, "error_model": "numpy"}
+"""numba's options of every compiled function (besides nopython and the disk cache)."""
+
+
 def njit(fn):
     """Compile ``fn`` with numba (nopython, cached on disk in :data:`CACHE_DIR`, no fastmath: IEEE operations in the
     written order, NumPy's error model: a division by zero gives inf / nan as in the reference paths instead of
     raising), or return it unchanged when numba is missing."""
     if _numba_njit is None:
         return fn
-    return _numba_njit(cache=True, nogil=True, error_model="numpy")(fn)
+    return _numba_njit(cache=True, **_OPTIONS)(fn)
+
+
+if _numba is not None:
+    from numba.core.registry import CPUDispatcher
+
+    class RecordDispatcher(CPUDispatcher):
+        """numba's dispatcher of an :func:`entry` function: every tuple argument of a call from Python (a record of
+        :mod:`humanoid_sim.kernel.records`, or a plain tuple) goes on as a plain tuple, and :meth:`typeof_pyval`
+        types it as one (``humanoid_sim.sim.builds`` compiles a call's signature from it without running the call).
+        Inside compiled code the dispatcher is numba's own: an entry point calling another one passes its plain
+        tuples on, and both share one compilation."""
+
+        def __call__(self, *args):
+            return super().__call__(*[tuple(a) if isinstance(a, tuple) else a for a in args])
+
+        def typeof_pyval(self, val):
+            return super().typeof_pyval(tuple(val) if isinstance(val, tuple) else val)
+
+
+def entry(fn):
+    """Compile ``fn`` as :func:`njit` does, as an entry point: a function Python calls with records (NamedTuples of
+    arrays and scalars, :mod:`humanoid_sim.kernel.records`).
+
+    numba's dispatcher types each argument of each call in C, from a key it writes for the value; a NamedTuple's key
+    spells its class and field names, which makes it about three times as costly as the same values in a plain tuple
+    (ten arrays: 1.3 us against 0.7 us a call; the thesis stage's eleven arguments, 77 arrays and scalars in nine
+    records: 10 us against 4 us, measured; ``docs/notes/2026-11-26-speed.md``).  So the records cross into numba as
+    plain tuples in ``_fields`` order (:class:`RecordDispatcher` converts them; callers keep passing records), and
+    ``fn`` rebuilds them on its first lines (``st = State(*st)``, which costs nothing in the compiled code).  Returns
+    ``fn`` unchanged when numba is missing (the rebuild then unpacks the records themselves)."""
+    if _numba is None or getattr(_numba.config, "DISABLE_JIT", False):
+        return fn
+    disp = RecordDispatcher(py_func=fn, locals={}, targetoptions={"nopython": True, "boundscheck": None, **_OPTIONS})
+    disp.enable_caching()
+    return disp
 
 
 def cache_present() -> bool:

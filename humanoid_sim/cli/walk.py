@@ -19,6 +19,7 @@ what it wrote.
 from __future__ import annotations
 
 import argparse
+import gc
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -174,10 +175,27 @@ def _wait_kernel(running: KernelBuild, quiet: bool) -> None:
 
 
 def _run(args: argparse.Namespace, scenario, out: Path) -> int:
-    """Simulate a validated scenario and write its outputs into ``out``; the exit status."""
+    """Simulate a validated scenario and write its outputs into ``out``; the exit status.  The processes that draw
+    the figures start before the walk simulates, so that they load matplotlib meanwhile on another core
+    (:mod:`humanoid_sim.outputs.plots.pool`; stopped once the outputs are written, or here on any exit)."""
+    from humanoid_sim.outputs.plots import pool
+
+    try:
+        return _walk(args, scenario, out)
+    finally:
+        pool.stop()
+
+
+def _walk(args: argparse.Namespace, scenario, out: Path) -> int:
     from humanoid_sim import api
     from humanoid_sim.analysis.summary import provenance
+    from humanoid_sim.outputs.plots import pool
     from humanoid_sim.sim.status import RunStatus
+
+    if args.figures != "none":   # forked now, the workers share what this process has loaded so far
+        from humanoid_sim.outputs.plots.thesis import FIGURE_SETS, warm_up
+
+        pool.start(len(FIGURE_SETS[args.figures]), warm_up)
 
     running = _build_kernel(args, scenario)
     try:
@@ -212,6 +230,7 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
         return _fail_input(f"{scenario.source}: {exc}")
     if scenario.gait.is_zmp and not args.quiet:
         print(f"walk.py: planned the gait and set up the walk in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    gc.freeze()   # the modules and the set-up stay: the full collections of the walk and its outputs skip them
     t_nominal = sim.traj.phases[-1].t_end
     bar = None
     progress = None
@@ -246,6 +265,7 @@ def _run(args: argparse.Namespace, scenario, out: Path) -> int:
     stale = _remove_stale_outputs(out)
     written = run.write(out, figures="none" if interrupted else args.figures,
                         playback=not (args.no_html or interrupted), full_rate=args.full_rate)
+    pool.stop()   # the figures are drawn: no idle workers while the summary prints or the live view plays
     figures = [p for p in written if p.suffix == ".png"]
     html = next((p for p in written if p.suffix == ".html"), None)
     _print_summary(run.summary, out)

@@ -1,6 +1,8 @@
 """Compiled twin of the weld engine's projection onto the support foot (``WeldEngine.project_on_support``,
 :mod:`humanoid_sim.engines.weld`) and of one Runge-Kutta combination of :mod:`humanoid_sim.dynamics.integrator`
-(``RungeKutta.step``'s ``advance``), numba.  Compared with the references in ``tests/test_kernel.py``.
+(``RungeKutta.step``'s ``advance``), numba.  Compared with the references in ``tests/test_kernel.py``.  The entry
+points (:func:`project_on_support`, :func:`advance_on_support`) receive their records as plain tuples
+(``humanoid_sim.jit.entry``) and rebuild them on their first line.
 """
 
 from __future__ import annotations
@@ -9,9 +11,10 @@ import math
 
 import numpy as np
 
-from humanoid_sim.jit import njit
+from humanoid_sim.jit import entry, njit
 from humanoid_sim.kernel.kinematics import action_matrix, forward_kinematics, frame_placement, quat_to_rot, rot_to_quat
 from humanoid_sim.kernel.linalg import cross, mm, mtm, mtv, mv, put
+from humanoid_sim.kernel.records import Anchor, SupportFoot, Tree
 
 
 @njit
@@ -60,15 +63,16 @@ def _project_inplace(q, v, anchor, foot, tree) -> None:
     put(v, 0, -mv(Ad, tw))
 
 
-@njit
+@entry
 def project_on_support(q, v, anchor, foot, tree, q_out, v_out) -> None:
     """(q, v) projected on the support foot (:func:`_project_inplace`) into (q_out, v_out)."""
+    anchor, foot, tree = Anchor(*anchor), SupportFoot(*foot), Tree(*tree)
     put(q_out, 0, q)
     put(v_out, 0, v)
     _project_inplace(q_out, v_out, anchor, foot, tree)
 
 
-@njit
+@entry
 def advance_on_support(q, v, coeffs, vs, accs, h, anchor, foot, tree, q_out, v_out) -> None:
     """The state at (q + h dq, v + h dv), dq = sum_j coeffs[j] vs[j] and dv = sum_j coeffs[j] accs[j] (a Runge-Kutta
     stage or step end), projected on the support foot, into (q_out, v_out): ``RungeKutta.step``'s combination,
@@ -76,6 +80,7 @@ def advance_on_support(q, v, coeffs, vs, accs, h, anchor, foot, tree, q_out, v_o
     rounding of ``integrator._combine``); revolute coordinates add (Pinocchio's integrate of a revolute joint); the
     base is not integrated, since the projection re-derives it from the foot (its input value cancels).  ``vs``,
     ``accs``: tuples of (nv,) arrays; ``anchor``, ``foot``, ``tree`` as :func:`_project_inplace`."""
+    anchor, foot, tree = Anchor(*anchor), SupportFoot(*foot), Tree(*tree)
     parents, idx_q, idx_v = tree.parents, tree.idx_q, tree.idx_v
     nv = v.size
     dq = np.zeros(nv)

@@ -96,13 +96,19 @@ class SupportKernel:
         whenever the Anchors object, one of its placement entries or its toe angle is not the one last read for this
         phase (the simulator replaces anchors at phase changes; an SE3 modified in place would not be noticed)."""
         frames, toe = self._frames[phase]
-        Ms = tuple(anchors.placements[f] for f in frames)
+        placements = anchors.placements
         angle = anchors.joint_positions[toe]
         hit = self._anchor_cache.get(phase)
-        if hit is None or hit[0] is not anchors or any(a is not b for a, b in zip(hit[1], Ms)) or hit[2] != angle:
-            val = Anchor(np.array([M.rotation for M in Ms]), np.array([M.translation for M in Ms]), float(angle))
-            hit = self._anchor_cache[phase] = (anchors, Ms, angle, val)
-        return hit[3]
+        if hit is not None and hit[0] is anchors and hit[2] == angle:
+            for f, M in zip(frames, hit[1]):   # (a loop, not any() over a generator: this runs at every stage)
+                if placements[f] is not M:
+                    break
+            else:
+                return hit[3]
+        Ms = tuple(placements[f] for f in frames)
+        val = Anchor(np.array([M.rotation for M in Ms]), np.array([M.translation for M in Ms]), float(angle))
+        self._anchor_cache[phase] = (anchors, Ms, angle, val)
+        return val
 
     def project(self, phase: Phase, anchors: Anchors, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The compiled ``WeldEngine.project_on_support`` for the support foot of ``phase``."""

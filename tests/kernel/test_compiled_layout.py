@@ -46,9 +46,10 @@ def test_the_cache_folder_honours_numba_cache_dir(tmp_path):
 
 
 def test_every_compiled_module_is_in_the_cache_key():
-    """Every module of the package that decorates a function with @njit is listed in jit.COMPILED_SOURCES."""
+    """Every module of the package that decorates a function with @njit or @entry is listed in
+    jit.COMPILED_SOURCES."""
     found = {str(p.relative_to(PACKAGE)) for p in PACKAGE.rglob("*.py")
-             if re.search(r"^@njit\b", p.read_text(), re.M)}
+             if re.search(r"^@(njit|entry)\b", p.read_text(), re.M)}
     assert found, "no compiled module found"
     assert found <= set(jit.COMPILED_SOURCES), found - set(jit.COMPILED_SOURCES)
 
@@ -110,3 +111,43 @@ def test_every_twin_names_its_reference():
     for rel, name in refs.items():
         doc = ast.get_docstring(ast.parse((PACKAGE / rel).read_text()))
         assert doc and name in doc.replace("\n", " "), rel
+
+
+def test_entry_points_take_records_as_plain_tuples(hm):
+    """The functions Python calls are jit.entry dispatchers: records cross into numba as plain tuples (numba types a
+    NamedTuple about three times slower), so a call with records and one with the same values as plain tuples use
+    one compilation, whose signature holds no NamedTuple; inside compiled code the entry points rebuild the
+    records."""
+    import importlib
+
+    from numba import types
+
+    from humanoid_sim.dynamics.contact.constraints import record_anchors
+    from humanoid_sim.kernel.projection import project_on_support
+    from humanoid_sim.kernel.support import SupportKernel
+    from humanoid_sim.references.initial import initial_configuration
+    from humanoid_sim.robot.phases import Phase
+    from humanoid_sim.scenario.schema import load_scenario
+    from humanoid_sim.sim import builds
+
+    if not jit.AVAILABLE:
+        return
+    home = {**builds.HOME, "ssp_controller": builds.HOME["ssp_stage"]}
+    for name in set(builds.ENTRY_POINTS) | {"ssp_controller", "ssp_dynamics"}:
+        fn = getattr(importlib.import_module(home[name]), name)
+        assert isinstance(fn, jit.RecordDispatcher), name
+    sup = SupportKernel(hm)
+    q = initial_configuration(hm, load_scenario(PACKAGE.parent / "scripts" / "params" / "sim1.yaml").path)
+    v = np.zeros(hm.model.nv)
+    anchors = record_anchors(hm.model, q, Phase.LFFSSP.contacts)
+    anchor, foot, tree = sup.anchor(Phase.LFFSSP, anchors), sup._feet[Phase.LFFSSP], sup.tree.record
+    qa, va = sup.project(Phase.LFFSSP, anchors, q, v)                 # records
+    qb, vb = np.empty_like(q), np.empty_like(v)
+    project_on_support(q, v, tuple(anchor), tuple(foot), tuple(tree), qb, vb)   # the same values, plain tuples
+    assert qa.tobytes() == qb.tobytes() and va.tobytes() == vb.tobytes()
+    sigs = [s for s in project_on_support.signatures if len(s) == 7]
+    assert len(sigs) == 1, sigs
+    assert not any(isinstance(a, types.NamedTuple) for a in sigs[0]), sigs[0]
+    assert project_on_support.typeof_pyval(anchor) == project_on_support.typeof_pyval(tuple(anchor))
+    assert isinstance(project_on_support.typeof_pyval(tree), types.BaseTuple)
+    assert not isinstance(project_on_support.typeof_pyval(tree), types.NamedTuple)

@@ -5,7 +5,9 @@
 loop order; ``tests/test_balance_compiled.py`` runs both paths on every call of walks on welds and on MuJoCo.
 
 Arguments come grouped (:mod:`humanoid_sim.kernel.records` and :class:`.qp.BalanceTables`); the call's references are
-one float vector with the named layout of :mod:`humanoid_sim.controllers.balance.targets`.  SI units.
+one float vector with the named layout of :mod:`humanoid_sim.controllers.balance.targets`.  The entry points
+(:func:`balance_stage`, :func:`balance_finish`) receive the records as plain tuples (``humanoid_sim.jit.entry``:
+numba types those three times faster) and rebuild them on their first lines.  SI units.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import math
 
 import numpy as np
 
-from humanoid_sim.controllers.balance.qp import BalanceTables  # noqa: F401 - the type of ``tables``
+from humanoid_sim.controllers.balance.qp import BalanceTables
 from humanoid_sim.controllers.balance.targets import (
     T_HEEL_ANGLE,
     T_HIP_A,
@@ -29,12 +31,13 @@ from humanoid_sim.controllers.balance.targets import (
     T_SWING_R,
     T_SWING_V,
 )
-from humanoid_sim.jit import njit
+from humanoid_sim.jit import entry, njit
 from humanoid_sim.kernel.actuators import thesis_torques
 from humanoid_sim.kernel.contact import contact_rows
 from humanoid_sim.kernel.kinematics import F_O17, F_PC17, log3, tree_state
 from humanoid_sim.kernel.linalg import cross, mm, mtm, mtv, mv, symmetric
 from humanoid_sim.kernel.log import LOG_ORI_ERR, LOG_POS_ERR, LOG_RESIDUAL, LOG_SIZE, log_frames
+from humanoid_sim.kernel.records import ActuatorTables, Anchor, Contact, Coords, State, Tree, Work
 
 
 @njit
@@ -172,7 +175,7 @@ def _task_row(A, b, w, row, motion, vel, f, lin, des, kp, kd, err, v_ref, wt) ->
         w[row + k] = wt
 
 
-@njit
+@entry
 def balance_stage(st, tree, co, work, contact, anchor, task, tables, feet, unload):
     """The balance controller's QP at (q, v): the compiled twin of ``BalanceController._qp_reference`` (task rows,
     the phase's weld and lock rows, the heel / toe box split, the QP of :func:`balance_qp`).  ``st``
@@ -188,6 +191,8 @@ def balance_stage(st, tree, co, work, contact, anchor, task, tables, feet, unloa
 
     Returns (G, g, C, lo, ne, cop, M, Tx, Jc, X, lift0, pos_err, ori_err) (:func:`balance_qp`; Jc the constraint rows,
     X (n_split, 6, 6), lift0 the heel lift used, rad; the largest weld errors, m and rad)."""
+    st, tree, co, work = State(*st), Tree(*tree), Coords(*co), Work(*work)
+    contact, anchor, tables = Contact(*contact), Anchor(*anchor), BalanceTables(*tables)
     mode, fi, fneed, tgt = task
     box_kind, split_toe = feet
     v, J, M_upper, h = st.v, st.J, st.M_upper, st.h
@@ -308,7 +313,7 @@ def balance_stage(st, tree, co, work, contact, anchor, task, tables, feet, unloa
     return G, g, C, lo, ne, cop, M, Tx, Jc, X, lift0, pos_err, ori_err
 
 
-@njit
+@entry
 def balance_finish(x, M, Jc, st, work, tree, co, act, pos_err, ori_err, bounded, bounds):
     """(a, lam, tau, T, log, theta_ddot, over, inside) of the balance controller's QP solution x = [a; lam; ...]: tau
     = M a + h - Jc^T lam with the base rows zeroed, T the thesis actuator torques (:func:`thesis_torques`), the stage
@@ -317,6 +322,7 @@ def balance_finish(x, M, Jc, st, work, tree, co, act, pos_err, ori_err, bounded,
     bounds[i] in magnitude, and whether every |T[i]| <= act.limits[i] (``Actuators.saturate``'s test: False for a
     NaN).  ``st``: the state :func:`balance_stage` ran at; ``work``: what it left in its buffers; pos_err, ori_err:
     what it returned."""
+    st, work, tree, co, act = State(*st), Work(*work), Tree(*tree), Coords(*co), ActuatorTables(*act)
     J, dJ, v, h = st.J, st.dJ, st.v, st.h
     R, p, fR, fpos, vel = work.R, work.p, work.fR, work.fpos, work.vel
     jcols, jsign, limits = co.jcols, co.jsign, act.limits

@@ -13,7 +13,9 @@ Arguments come grouped (:mod:`humanoid_sim.kernel.records`): the state and Pinoc
 (:class:`~humanoid_sim.kernel.records.State`), the tree's constant tables (``Tree``), the thesis joint coordinates
 (``Coords``), the phase's controller tables (:class:`SspTables` / :class:`DspTables`), the work buffers (``Work``),
 the phase's contact rows and anchors (``Contact``, ``Anchor``), the actuator tables (``ActuatorTables``) and the
-outputs (``StageBuffers``).  SI units throughout.
+outputs (``StageBuffers``).  The entry points (:func:`ssp_stage`, :func:`dsp_stage`, and the two halves of the
+first, :func:`ssp_controller` and :func:`ssp_dynamics`) receive them as plain tuples (``humanoid_sim.jit.entry``:
+numba types those three times faster) and rebuild the records on their first lines.  SI units throughout.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from humanoid_sim.jit import njit
+from humanoid_sim.jit import entry, njit
 from humanoid_sim.kernel.actuators import thesis_torques
 from humanoid_sim.kernel.contact import contact_rows, inverse_general, inverse_square
 from humanoid_sim.kernel.kinematics import F_O17, F_PC17, tree_state
@@ -40,6 +42,7 @@ from humanoid_sim.kernel.linalg import (
     symmetric,
 )
 from humanoid_sim.kernel.log import LOG_ORI_ERR, LOG_POS_ERR, LOG_RESIDUAL, LOG_STATUS, log_frames
+from humanoid_sim.kernel.records import ActuatorTables, Anchor, Contact, Coords, StageBuffers, State, Tree, Work
 from humanoid_sim.references.chapter3.compiled import dsp_references, ssp_references
 
 
@@ -311,7 +314,7 @@ def _finish(st, M, Jc, a, tau, lam, pos_err, ori_err, work, support, act, out) -
     put(out.tau, 0, tau)
 
 
-@njit
+@entry
 def ssp_controller(st, tab, t, tree, co, tables, work, qdd_out):
     """Command accelerations theta_ddot_c (26,) of a single-support stage, written into ``qdd_out``.
 
@@ -321,6 +324,7 @@ def ssp_controller(st, tab, t, tree, co, tables, work, qdd_out):
     for :func:`ssp_dynamics`: joint placements R, p, frame placements fR, fpos, and for the frames flagged in
     ``tables.need`` (the ones this phase's tasks read) the frame [J | drift] ``motion`` and velocities ``vel``
     (LOCAL_WORLD_ALIGNED)."""
+    st, tree, co, tables, work = State(*st), Tree(*tree), Coords(*co), SspTables(*tables), Work(*work)
     th, thd = tree_state(st, tree, co, tables.need, work)
     ref_a_p, ref_a_v, ref_a_R = np.empty(3), np.empty(6), np.empty((3, 3))
     ref_b_p, ref_b_v, ref_b_R = np.empty(3), np.empty(6), np.empty((3, 3))
@@ -329,12 +333,14 @@ def ssp_controller(st, tab, t, tree, co, tables, work, qdd_out):
                                 ref_a_p, ref_a_v, ref_a_R, ref_b_p, ref_b_v, ref_b_R, tables))
 
 
-@njit
+@entry
 def ssp_dynamics(st, anchor, tree, co, work, contact, act, out):
     """Computed torque of a single-support stage for the command accelerations ``out.qdd``, written into ``out``
     (a (nv,), lam (7,), T (26,, T_cmd), tau (nv,), log (LOG_SIZE,, zeroed here)).  ``st``: the state with crba's
     upper triangle and nonLinearEffects; ``contact.welds``: the support foot's weld frame row (one); ``work`` as
     :func:`ssp_controller` left it."""
+    st, anchor, tree, co, work = State(*st), Anchor(*anchor), Tree(*tree), Coords(*co), Work(*work)
+    contact, act, out = Contact(*contact), ActuatorTables(*act), StageBuffers(*out)
     qdd, v, M_upper, h = out.qdd, st.v, st.M_upper, st.h
     R, p, fR, fpos = work.R, work.p, work.fR, work.fpos
     M = symmetric(M_upper)
@@ -345,20 +351,23 @@ def ssp_dynamics(st, anchor, tree, co, work, contact, act, out):
     _finish(st, M, Jc, a, tau, lam, pos_err, ori_err, work, tree.support, act, out)
 
 
-@njit
+@entry
 def ssp_stage(st, tab, t, anchor, tree, co, tables, work, contact, act, out) -> None:
     """:func:`ssp_controller` then :func:`ssp_dynamics` in one call (the simulator's hot path; the two halves stay
-    separate functions so that a profile can time them apart)."""
-    ssp_controller(st, tab, t, tree, co, tables, work, out.qdd)
+    separate functions so that a profile can time them apart).  The records go on as the plain tuples they came
+    as, so that each half is the one compilation Python's calls of it use."""
+    ssp_controller(st, tab, t, tree, co, tables, work, StageBuffers(*out).qdd)
     ssp_dynamics(st, anchor, tree, co, work, contact, act, out)
 
 
-@njit
+@entry
 def dsp_stage(st, tab, t, anchor, tree, co, tables, work, contact, weights, act, out) -> None:
     """One double-support stage (the compiled twin of ``ThesisController.evaluate`` in RFFDSP / LFFDSP): command
     accelerations with the closed chain, the weighted minimum-norm computed torque under both welds and the lock,
     the thesis torques and the log; arguments as :func:`ssp_stage` (``tables``: :class:`DspTables`) plus the
     torque-split weights ``weights`` = (w_tau (nv,), w_lam (m,))."""
+    st, anchor, tree, co, tables = State(*st), Anchor(*anchor), Tree(*tree), Coords(*co), DspTables(*tables)
+    work, contact, act, out = Work(*work), Contact(*contact), ActuatorTables(*act), StageBuffers(*out)
     w_tau, w_lam = weights
     qdd_out, v, M_upper, h = out.qdd, st.v, st.M_upper, st.h
     th, thd = tree_state(st, tree, co, tables.need, work)

@@ -29,7 +29,7 @@ from humanoid_sim.outputs.colours import (
     REFERENCE_COLOUR,
     ZMP_COLOUR,
 )
-from humanoid_sim.outputs.plots.common import HEADER_IN, _handle, _header, real_contact, shade_phases
+from humanoid_sim.outputs.plots.common import HEADER_IN, _handle, _header, new_figure, real_contact, shade_phases
 
 PHASE_SHADES = PHASE_COLOURS
 """Former name of :data:`humanoid_sim.outputs.colours.PHASE_COLOURS`."""
@@ -40,15 +40,13 @@ def contact_audit_figure(report: AuditReport, title: str = "", engine: str | Non
     """The audit figure as a bare :class:`matplotlib.figure.Figure`.  ``engine``: the run's engine; on real contact
     (:func:`.common.real_contact`) the figure speaks of the engine's contact forces, otherwise of the welded feet."""
     real = real_contact(engine)
-    from matplotlib.figure import Figure
-
     t = report.t
     names = [str(n) for n in report.phase_name]
     order = list(dict.fromkeys(names))
     phase = np.array([order.index(n) for n in names], dtype=int)
     # a run's consecutive phases of the same basic name form one shaded span, as the basic phase is all this knows
     h_in = HEADER_IN + 0.5 + 4 * 2.0 + 0.6
-    fig = Figure(figsize=(10, h_in))
+    fig = new_figure(figsize=(10, h_in))
     axes = fig.subplots(4, 1, sharex=True)
     fig.subplots_adjust(left=0.09, right=0.98, top=1 - (HEADER_IN + 0.2) / h_in, bottom=0.5 / h_in, hspace=0.3)
     for i, foot in enumerate(FEET):

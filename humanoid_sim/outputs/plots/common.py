@@ -1,18 +1,22 @@
-"""What every figure shares: file writing, the header with its legend, phase shading."""
+"""What every figure shares: file writing, the header with its legend, phase shading.
+
+The figure modules import matplotlib when they first build a figure (:func:`new_figure`), not when they are
+imported: a walk's own process then loads it only if it draws a figure itself (``walk.py``'s figures are drawn by
+worker processes, :mod:`humanoid_sim.outputs.plots.pool`)."""
 
 from __future__ import annotations
 
+from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
+from humanoid_sim.outputs.colours import PHASE_COLOURS, REFERENCE_COLOUR
 
-from humanoid_sim.outputs.colours import PHASE_COLOURS, REFERENCE_COLOUR  # noqa: E402
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
 REFERENCE_STYLE = dict(color=REFERENCE_COLOUR, ls="--", lw=1.0)
 
@@ -33,6 +37,23 @@ def engine_of(r: dict[str, np.ndarray], engine: str | None = None) -> str | None
         return engine
     e = r.get("engine")
     return None if e is None else str(np.asarray(e))
+
+
+@cache
+def _figure_class() -> type[Figure]:
+    """matplotlib's Figure class, imported on the first call, which also selects the Agg backend (once, as importing
+    these modules did before they imported matplotlib lazily)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    return Figure
+
+
+def new_figure(**kwargs: Any) -> Figure:
+    """A bare :class:`matplotlib.figure.Figure` (not registered with pyplot) with ``kwargs``."""
+    return _figure_class()(**kwargs)
 
 
 def _save(fig: Figure, path: Path, dpi: int = 120) -> Path:
@@ -68,6 +89,8 @@ def _phases_present(r: dict[str, np.ndarray]) -> list[str]:
 
 
 def _handle(label: str, **style: Any) -> Line2D:
+    from matplotlib.lines import Line2D
+
     return Line2D([], [], label=label, **style)
 
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from humanoid_sim.outputs.colours import FOOT_COLOURS, FOOT_NAMES, OUTSIDE_COLOUR, REFERENCE_COLOUR, ZMP_COLOUR
 from humanoid_sim.outputs.plots.common import (
@@ -18,9 +17,12 @@ from humanoid_sim.outputs.plots.common import (
     _phase_runs,
     _phases_present,
     _shade,
+    new_figure,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
     from humanoid_sim.analysis.audit import AuditReport
 
 WINDOW_M = 2.0
@@ -81,7 +83,7 @@ def contact_world_figure(r: dict[str, np.ndarray], report: AuditReport) -> Figur
     from matplotlib.gridspec import GridSpec
 
     h_in = HEADER_IN + 0.75 + 3 * 2.0
-    fig = Figure(figsize=(13, h_in))
+    fig = new_figure(figsize=(13, h_in))
     gs = GridSpec(3, 2, figure=fig, width_ratios=(1.55, 1.0), left=0.07, right=0.985, top=1 - (HEADER_IN + 0.25) / h_in,
                   bottom=0.5 / h_in, hspace=0.12, wspace=0.18)
     axes = [fig.add_subplot(gs[0, 0])]

@@ -32,18 +32,14 @@ saturation limit lines carry ``"limit:<T name>"``; lines of the ground view and 
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import matplotlib
+import numpy as np
 
 from humanoid_sim.errors import HumanoidSimError
-
-matplotlib.use("Agg")
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-
-from humanoid_sim.outputs.colours import (  # noqa: E402
+from humanoid_sim.outputs.colours import (
     FOOT_COLOURS,
     FOOT_NAMES,
     LIMIT_COLOUR,
@@ -52,7 +48,7 @@ from humanoid_sim.outputs.colours import (  # noqa: E402
     SIGNAL_COLOUR,
     WAYPOINT_COLOUR,
 )
-from humanoid_sim.outputs.plots.common import (  # noqa: E402,F401
+from humanoid_sim.outputs.plots.common import (  # noqa: F401
     HEADER_IN,
     REFERENCE_STYLE,
     _handle,
@@ -63,12 +59,15 @@ from humanoid_sim.outputs.plots.common import (  # noqa: E402,F401
     _save,
     _shade,
     engine_of,
+    new_figure,
     real_contact,
     shade_phases,
 )
-from humanoid_sim.outputs.plots.ground import contact_world_figure  # noqa: E402
+from humanoid_sim.outputs.plots.ground import contact_world_figure
 
 if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
     from humanoid_sim.analysis.audit import AuditReport
     from humanoid_sim.references.chapter3 import ReferenceTrajectory
 
@@ -126,7 +125,7 @@ def reference_figures(traj: ReferenceTrajectory, dt: float = 0.005) -> dict[str,
         ax.plot(*coords, "o", ms=4, mfc="none", color=WAYPOINT_COLOUR)
 
     figs: dict[str, Figure] = {}
-    fig = Figure(figsize=(8, 7.5))
+    fig = new_figure(figsize=(8, 7.5))
     ax = fig.add_subplot(projection="3d")
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.02, top=1 - 1.1 / 7.5)
     draw(ax, 0, 1, 2)
@@ -143,7 +142,7 @@ def reference_figures(traj: ReferenceTrajectory, dt: float = 0.005) -> dict[str,
 
     for name, (ix, iy), labels, fig_no in (("xy", (0, 1), ("x [m]", "y [m]"), "6.52"),
                                            ("xz", (0, 2), ("x [m]", "z [m]"), "6.53")):
-        fig = Figure(figsize=(8, 7))
+        fig = new_figure(figsize=(8, 7))
         ax = fig.add_subplot()
         fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=1 - 1.1 / 7)
         draw(ax, ix, iy)
@@ -240,12 +239,43 @@ class PlotError(HumanoidSimError, ValueError):
 
 def torque_limits() -> dict[str, float]:
     """Saturation limit of every actuator torque, N m (models/thesis_humanoid.yaml, errata section 7)."""
+    return dict(_spec_torque_limits())
+
+
+@cache
+def _spec_torque_limits() -> tuple[tuple[str, float], ...]:
+    """:func:`torque_limits`, read from the robot's YAML once per process (parsing it takes ~0.15 s, as long as
+    drawing a figure; a figure worker reads it while it warms up, :mod:`humanoid_sim.outputs.plots.pool`)."""
     from humanoid_sim.robot.actuators import GROUPS
     from humanoid_sim.robot.model import DEFAULT_SPEC
     from urdf_gen.spec import load_spec
 
     spec = load_spec(DEFAULT_SPEC)
-    return {name: float(spec.actuators[g.name]["limit"]) for g in GROUPS for name in g.T}
+    return tuple((name, float(spec.actuators[g.name]["limit"])) for g in GROUPS for name in g.T)
+
+
+def warm_up() -> None:
+    """Load what drawing the figures needs before the first one (a figure worker's start,
+    :mod:`humanoid_sim.outputs.plots.pool`): matplotlib's Agg canvas, the audit figure's module, the torque limits
+    (the robot's YAML), and what one small throw-away figure loads: the fonts, and the parser of the mathtext that
+    log and symlog axes label their ticks with ($10^{2}$)."""
+    import io
+
+    import matplotlib.backends.backend_agg  # noqa: F401
+
+    import humanoid_sim.outputs.plots.audit  # noqa: F401
+
+    torque_limits()
+    fig = new_figure(figsize=(2.0, 2.0))
+    ax, log = fig.subplots(2, 1, sharex=True)
+    ax.plot([0.0, 1.0], [0.0, 1.0], label="warm-up", marker=".", ms=2)
+    ax.axvspan(0.2, 0.4, alpha=0.25, lw=0)
+    log.plot([0.0, 1.0], [0.1, 100.0])
+    log.set_yscale("log")
+    log.set_xlabel("t [s]")
+    fig.legend(fontsize=7)
+    fig.suptitle("warm-up", fontsize=11)
+    fig.savefig(io.BytesIO(), format="png", dpi=50)
 
 
 def _check(r: dict[str, np.ndarray]) -> None:
@@ -267,7 +297,7 @@ def _time_figure(r, n_rows: int, n_cols: int = 1, height: float = 2.0, width: fl
     header band of :func:`_header`; fixed margins (inches) instead of a layout engine, which triples the drawing
     time."""
     h_in = HEADER_IN + 0.5 + height * n_rows
-    fig = Figure(figsize=(width or (9 if n_cols == 1 else 11), h_in))
+    fig = new_figure(figsize=(width or (9 if n_cols == 1 else 11), h_in))
     axes = fig.subplots(n_rows, n_cols, sharex=True, squeeze=False)
     fig.subplots_adjust(left=0.12 if n_cols == 1 else 0.08, right=0.98, top=1 - HEADER_IN / h_in, bottom=0.5 / h_in,
                         hspace=0.12, wspace=0.25)
@@ -480,13 +510,15 @@ def plot_all(results_path: str | Path, out_dir: str | Path, traj: ReferenceTraje
     ``traj`` (the run's :class:`ReferenceTrajectory`): the reference-trajectory figures, skipped without it.  ``mu``:
     the friction coefficient of the contact audit, or ``report``: the audit itself (``hm``: the model to compute it
     with).  ``title``: the scenario name.  The figures are drawn by ``workers`` processes (default: one per CPU, at
-    most 4; 1 draws them here): matplotlib spends ~0.3 s per figure, far more than the simulation per figure's worth
-    of data.  Every file is written atomically.
+    most 4; 1 draws them here): matplotlib spends ~0.2 s per figure, far more than the simulation per figure's worth
+    of data.  Without ``workers``, the workers :mod:`~humanoid_sim.outputs.plots.pool` started ahead draw them when
+    they run (``walk.py`` starts them before it simulates).  Every file is written atomically.
     """
-    import os
     from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
 
     from humanoid_sim.interfaces.log import load_results
+    from humanoid_sim.outputs.plots import pool
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -502,7 +534,11 @@ def plot_all(results_path: str | Path, out_dir: str | Path, traj: ReferenceTraje
     stems = [s for s in figure_stems(r) if s in wanted]
     # contact_world and contact_audit are the slowest two: first and second, so that different workers draw them
     stems = sorted(stems, key=lambda s: {"contact_world": -2, "contact_audit": -1}.get(s, 0))
-    workers = min(4, os.cpu_count() or 1, max(1, len(stems))) if workers is None else max(1, int(workers))
+    ahead = pool.running() if workers is None else None
+    if ahead is not None:
+        workers = ahead[1]
+    else:
+        workers = pool.default_workers(len(stems)) if workers is None else max(1, int(workers))
     shares = [stems[i::workers] for i in range(workers)]
     done: dict[str, Path] = {}
 
@@ -527,16 +563,32 @@ def plot_all(results_path: str | Path, out_dir: str | Path, traj: ReferenceTraje
         if meanwhile is not None:
             meanwhile()
     else:
-        # what every worker needs, loaded before they fork from this process (each would load it anew otherwise)
-        import matplotlib.backends.backend_agg  # noqa: F401
+        def submit(executor: ProcessPoolExecutor) -> list:
+            return [executor.submit(_render, str(results_path), str(out_dir), share, dpi, report, float(mu), title,
+                                    engine) for share in shares if share]
 
-        import humanoid_sim.outputs.plots.audit  # noqa: F401
+        futures: list = []
+        if ahead is not None:
+            try:
+                futures = submit(ahead[0])
+            except BrokenProcessPool:   # a worker started ahead died (killed while it warmed up): draw without them
+                futures = []
+        own = None
+        if not futures:
+            # what every worker needs, loaded before they fork from this process (each would load it anew otherwise)
+            import matplotlib.backends.backend_agg  # noqa: F401
 
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = [pool.submit(_render, str(results_path), str(out_dir), share, dpi, report, float(mu), title,
-                                   engine) for share in shares if share]
+            import humanoid_sim.outputs.plots.audit  # noqa: F401
+
+            own = ProcessPoolExecutor(max_workers=workers)
+        try:
+            if own is not None:
+                futures = submit(own)
             reference()  # meanwhile, in this process
             if meanwhile is not None:
                 meanwhile()
             done.update({Path(p).stem: Path(p) for f in futures for p in f.result()})
+        finally:
+            if own is not None:
+                own.shutdown()
     return [done[s] for s in FIGURES if s in done]
