@@ -346,18 +346,12 @@ class MujocoEngine:
         """What the log keeps of the state (q, v) at a step's start, read right after its first MuJoCo step (whose
         acceleration and contact forces are those of that state): MuJoCo's acceleration and constraint forces,
         the command, the phase's anchors, and the ground's wrenches on the feet (foot wrench, centre of pressure,
-        body wrenches).  :meth:`_derive` computes the rest after the run."""
+        body wrenches, as :meth:`_trace_row` read them for the same step).  :meth:`_derive` computes the rest after the
+        run."""
         data = self.sim.data
-        fw, cop = np.empty((2, 6)), np.empty((2, 3))
-        bf, bm = np.empty((4, 3)), np.empty((4, 3))
-        done = False
-        if self.compiled:
-            con = data.contact
-            done = mjc.contact_wrenches(con.geom, con.pos, con.frame, con.dim, con.efc_address, data.efc_force,
-                                        self._group, self.mm.floor_geom, self._wrench_bodies, data.xipos,
-                                        data.xmat, fw, cop, bf, bm)
-        if not done:
-            self._contact_record(fw, cop, bf, bm)
+        c, row = self._cols, self._last_row   # the trace row of this same MuJoCo step holds its ground wrenches
+        fw, cop = row[c["fw"]].reshape(2, 6).copy(), row[c["cop"]].reshape(2, 3).copy()
+        bf, bm = row[c["bf"]].reshape(4, 3).copy(), row[c["bm"]].reshape(4, 3).copy()
         qacc = data.qacc.copy()
         T, T_cmd, sat = cmd.T, cmd.T_cmd, cmd.saturated
         if T is None:   # the controller gave tau only: the thesis torques now (a failure ends the run with a reason)
@@ -468,6 +462,7 @@ class MujocoEngine:
                                         data.xmat, fw, cop, bf, bm)
         if not done:
             self._contact_record(fw, cop, bf, bm)
+        self._last_row = row
 
     def build_trace(self) -> Trace | None:
         """The run's full-rate trace: one row per MuJoCo step (:attr:`sim`'s timestep), in Pinocchio's conventions
