@@ -30,6 +30,7 @@ from humanoid_sim.interfaces.log import SIGNALS, atomic_write_text
 from humanoid_sim.paths import scenario_path
 from humanoid_sim.robot.actuators import T_NAMES
 from humanoid_sim.robot.model import THETA_NAMES, HumanoidModel, load_model
+from humanoid_sim.robot.variant import RobotVariant, variant_model
 from humanoid_sim.scenario import Scenario, load_scenario
 from humanoid_sim.sim.loop import SimResult
 from humanoid_sim.sim.simulate import Simulator
@@ -45,10 +46,16 @@ if TYPE_CHECKING:  # pragma: no cover
 Engine = Literal["pinocchio", "thesis", "mujoco"]
 
 
-@lru_cache(maxsize=1)
-def robot() -> HumanoidModel:
-    """The thesis humanoid's model, loaded once per process (the URDF parse takes ~0.1 s)."""
-    return load_model()
+@lru_cache(maxsize=8)
+def robot(variant: RobotVariant | None = None) -> HumanoidModel:
+    """The humanoid's model, loaded once per process and variant (the URDF parse takes ~0.1 s).
+
+    Args:
+        variant: a scenario's ``robot`` section (`Scenario.robot`); None (or a nominal variant) for the thesis robot.
+    """
+    if variant is not None and variant.is_nominal:
+        return robot(None)
+    return load_model() if variant is None else variant_model(variant)
 
 
 def _component_labels(name: str, shape: tuple[int, ...], hm: HumanoidModel) -> list[tuple[str, str]]:
@@ -307,7 +314,8 @@ def prepare(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, co
     """
     if engine not in ENGINE_NAMES:
         raise InputError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
-    return Simulator(robot(), as_scenario(scenario), compiled=compiled, engine=engine, controller=controller)
+    sc = as_scenario(scenario)
+    return Simulator(robot(sc.robot), sc, compiled=compiled, engine=engine, controller=controller)
 
 
 def finish(sim: Simulator, result: SimResult) -> Run:

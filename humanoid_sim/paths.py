@@ -7,6 +7,7 @@ The files are package data (``humanoid_sim/data/``), so a built wheel carries th
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from humanoid_sim.errors import InputError
@@ -19,6 +20,15 @@ SCENARIOS_DIR = DATA_DIR / "params"
 """The shipped scenarios: the thesis's ``sim1``-``sim3`` and the feasible ``*_zmp`` walks."""
 SWEEPS_DIR = DATA_DIR / "sweeps"
 """The shipped sweep files."""
+
+
+def cache_dir() -> Path:
+    """Where generated files are kept between runs (robot variants' URDFs): ``$HUMANOID_SIM_CACHE``, else
+    ``$XDG_CACHE_HOME/humanoid_sim``, else ``~/.cache/humanoid_sim``."""
+    if os.environ.get("HUMANOID_SIM_CACHE"):
+        return Path(os.environ["HUMANOID_SIM_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "humanoid_sim"
 
 
 def scenario_names() -> list[str]:
@@ -42,4 +52,5 @@ def scenario_path(scenario: str | Path) -> Path:
                      f"one of {', '.join(scenario_names())}")
 
 
-__all__ = ["DATA_DIR", "MODELS_DIR", "PACKAGE_DIR", "SCENARIOS_DIR", "SWEEPS_DIR", "scenario_names", "scenario_path"]
+__all__ = ["DATA_DIR", "MODELS_DIR", "PACKAGE_DIR", "SCENARIOS_DIR", "SWEEPS_DIR", "cache_dir", "scenario_names",
+           "scenario_path"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -41,6 +42,36 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
                     reason=f"needs the thesis's numbers extracted independently of this project "
                            f"({REFERENCE / name}.yaml, next to the project folder in the development workspace); "
                            "a fresh clone does not have them"))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _variant_cache(tmp_path_factory: pytest.TempPathFactory):
+    """Robot variants' generated URDFs go to a folder of this session, not the user's cache (set before any Dask
+    worker starts, so the workers inherit it)."""
+    old = os.environ.get("HUMANOID_SIM_CACHE")
+    os.environ["HUMANOID_SIM_CACHE"] = str(tmp_path_factory.mktemp("cache"))
+    yield
+    if old is None:
+        os.environ.pop("HUMANOID_SIM_CACHE", None)
+    else:
+        os.environ["HUMANOID_SIM_CACHE"] = old
+
+
+VARIANT_DOC = {"length_scale": {"foot": 1.08, "shank": 1.1, "thigh": 0.93, "trunk": 1.05, "arms": 0.9, "head": 1.2},
+               "mass_scale": {"all": 1.1, "trunk": 0.9, "right_thigh": 1.2},
+               "sole": {"length_m": 0.25, "width_m": 0.11},
+               "payload": {"mass_kg": 4.0, "body": "upper_trunk", "position_m": [0.06, 0.03, -0.1]}}
+"""A robot variant that changes every kind of parameter (the ``robot:`` section of a scenario), left-right
+asymmetric (one thigh heavier, the payload off the centre line)."""
+
+
+@pytest.fixture(scope="session")
+def variant_hm(_variant_cache) -> HumanoidModel:
+    """The model of :data:`VARIANT_DOC` (generated into the session's cache)."""
+    from humanoid_sim.robot.variant import variant_model
+    from humanoid_sim.scenario.robot import parse_robot
+
+    return variant_model(parse_robot("<test>", VARIANT_DOC).variant)
 
 
 @pytest.fixture(scope="session")

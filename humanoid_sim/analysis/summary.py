@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -176,7 +177,17 @@ def summary_audit_design(result: SimResult, scenario: Any, engine: str, hm: Any,
         card = design_card(result.trace, result.log.arrays(), hm, settling, motors,
                            drive.get("envelope_shortfalls"))
         summary["design"] = card.summary()
+    if getattr(scenario, "robot", None) is not None:
+        summary["robot"] = robot_section(scenario.robot, hm)
     return summary, report, card
+
+
+def robot_section(variant: Any, hm: Any) -> dict[str, Any]:
+    """The summary's ``robot`` entry of a scenario with a ``robot:`` section: the generated model's mass (kg,
+    Pinocchio's sum over its bodies, rotors excluded), its URDF file and hash, and the variant's parameters."""
+    mass = float(sum(inertia.mass for inertia in hm.model.inertias))
+    return {"mass_kg": mass, "model": Path(hm.urdf_path).name,
+            "nominal": bool(variant.is_nominal), "parameters": variant.parameters()}
 
 
 from humanoid_sim.analysis.audit import EDGE_TOL_M  # noqa: E402  (imported here, with the verdict that reads it)

@@ -199,7 +199,7 @@ def _walk(args: argparse.Namespace, scenario, out: Path) -> int:
 
     running = _build_kernel(args, scenario)
     try:
-        hm = api.robot()
+        hm = api.robot(scenario.robot)
         if running is not None:
             _wait_kernel(running, args.quiet)
     finally:

@@ -9,6 +9,8 @@ Sections:
 - ``balance``: the balance controller's settings (:mod:`.balance`); optional, documented defaults;
 - ``actuators``: a motor and gearbox per joint from a sourced catalogue (:mod:`.actuators`); optional: without it
   every joint is the thesis's torque source;
+- ``robot``: the body as a design variable (segment lengths, masses, sole, payload; :mod:`.robot`); optional:
+  without it the walk runs on the thesis robot;
 - ``controller_class`` and ``controller_settings``: a user's controller (``package.module:ClassName``) and its own
   settings, passed to its ``setup`` as ``ControlContext.settings``;
 - ``reset``: the touchdown weights W_adj of eqs. 4.97/4.100; required only when the thesis impact law is used;
@@ -36,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from humanoid_sim.references.chapter3 import PathParamError, PathParams
+from humanoid_sim.robot.variant import RobotVariant
 from humanoid_sim.scenario.actuators import ActuatorChoice, parse_actuators
 from humanoid_sim.scenario.balance import BalanceSettings, parse_balance
 from humanoid_sim.scenario.fields import (
@@ -49,11 +52,12 @@ from humanoid_sim.scenario.fields import (
     type_hint,
     vector,
 )
+from humanoid_sim.scenario.robot import parse_robot
 from humanoid_sim.scenario.thesis_controller import ControllerParams, parse_controller
 from humanoid_sim.scenario.yamlio import read_yaml
 
-SECTIONS = ("name", "description", "base", "path", "gait", "controller", "balance", "actuators", "controller_class",
-            "controller_settings", "reset", "simulation", "phase_switch", "contact")
+SECTIONS = ("name", "description", "base", "path", "gait", "controller", "balance", "actuators", "robot",
+            "controller_class", "controller_settings", "reset", "simulation", "phase_switch", "contact")
 REQUIRED = ("path",)
 RESET_KEYS = ("Wadj_qdot_LFFSSP_to_RFFDSP", "Wadj_qdot_RFFSSP_to_LFFDSP")
 METHODS = ("ode3", "rk4", "euler")
@@ -154,6 +158,7 @@ class Scenario:
         balance: the balance controller's settings.
         controller_settings: a user controller's own section, passed to its ``setup`` as ``ControlContext.settings``.
         actuators: a motor and gearbox per joint (:mod:`.actuators`), or None for the thesis's torque sources.
+        robot: the body's variant (:mod:`.robot`), or None for the thesis robot.
     """
 
     name: str
@@ -170,6 +175,7 @@ class Scenario:
     balance: BalanceSettings = field(default_factory=BalanceSettings)
     controller_settings: dict[str, Any] = field(default_factory=dict)
     actuators: ActuatorChoice | None = None
+    robot: RobotVariant | None = None
 
     @property
     def runs_thesis_controller(self) -> bool:
@@ -179,7 +185,8 @@ class Scenario:
 
 
 def _lowered(src: str, path: PathParams, dz: float) -> PathParams:
-    """``path`` with every hip waypoint ``dz`` m lower (the zmp gait's ``gait.hip_lowering_m``)."""
+    """``path`` with every hip waypoint ``dz`` m lower (the zmp gait's ``gait.hip_lowering_m``; a robot variant's
+    legs, ``robot.hip_height``)."""
     Phip = np.array(path.Phip, dtype=float)
     Phip[:, 2] -= dz
     if Phip[:, 2].min() <= HIP_HEIGHT.lo:
@@ -364,10 +371,16 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
         W_adj = {}
     balance = parse_balance(src, doc.get("balance"))
     folder = Path(source).parent if source and not source.startswith("<") else None
-    actuators = parse_actuators(src, doc.get("actuators"), folder)
+    section = parse_robot(src, doc.get("robot"))
+    robot, robot_actuators = (None, None) if section is None else (section.variant, section.actuators)
+    if section is not None and section.hip_rise_m != 0.0:   # the walk keeps the thesis robot's knee bend
+        path = _lowered(src, path, -section.hip_rise_m)
+    if robot_actuators is not None and doc.get("actuators") is not None:
+        raise ScenarioError(f"{src}: robot.actuators: given with an actuators section too; expected one of them")
+    actuators = parse_actuators(src, doc.get("actuators") if robot_actuators is None else robot_actuators, folder)
     return Scenario(name=name, description=desc, path=path, controller=controller, W_adj=W_adj, simulation=sim,
                     switch=sw, contact=ct, source=source, controller_class=cc, gait=gait, balance=balance,
-                    controller_settings=user_settings, actuators=actuators)
+                    controller_settings=user_settings, actuators=actuators, robot=robot)
 
 
 NOT_INHERITED = ("name", "description")

@@ -66,7 +66,7 @@ def run_walk(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, 
     if engine not in ENGINE_NAMES:
         raise ValueError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
     model()   # counted once per process
-    run = api.run_walk(parse_scenario(doc, source), engine)
+    run = api.run_walk(parse_scenario(doc, source), engine, verbose=False)
     summary = run.summary
     trace = run.result.trace   # every integration step (the log where that is every step)
     rms = torque_rms(trace.columns["T"]) if trace is not None and len(trace) else np.full(len(T_NAMES), np.nan)

@@ -82,7 +82,14 @@ def test_sole_boxes_in_the_world(hm: HumanoidModel, mm) -> None:
         np.testing.assert_allclose(hi - lo, [0.09, 0.226, 0.0], atol=1e-12)
 
 
-def test_mass_and_inertias(hm: HumanoidModel, mm) -> None:
+@pytest.fixture(params=["thesis", "variant"])
+def models(request, hm: HumanoidModel, mm, variant_hm: HumanoidModel):
+    """The thesis robot and a robot variant (tests/conftest.py VARIANT_DOC), each with its MuJoCo model."""
+    return (hm, mm) if request.param == "thesis" else (variant_hm, build_model(variant_hm))
+
+
+def test_mass_and_inertias(models) -> None:
+    hm, mm = models
     m = mm.model
     # Real bodies as in the URDF; 14 virtual bodies at the 1e-13 bound.  1e-11 kg covers 14 bounds + round-off.
     assert abs(m.body_mass.sum() - pin.computeTotalMass(hm.model)) < 1e-11
@@ -103,8 +110,10 @@ def test_mass_and_inertias(hm: HumanoidModel, mm) -> None:
                                    err_msg=name)
 
 
-def test_mass_matrix_and_bias_agree_with_pinocchio(hm: HumanoidModel, mm) -> None:
-    """At random states, through the StateMap: M_pin = T^T M_mj T and h_pin = T^T (h_mj + M_mj Tdot v)."""
+def test_mass_matrix_and_bias_agree_with_pinocchio(models) -> None:
+    """At random states, through the StateMap: M_pin = T^T M_mj T and h_pin = T^T (h_mj + M_mj Tdot v); on the
+    thesis robot and on a variant (the generated URDF read by both engines)."""
+    hm, mm = models
     m = mm.model
     d = mujoco.MjData(m)
     smap = StateMap.from_models(hm, m)

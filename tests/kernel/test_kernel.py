@@ -638,6 +638,14 @@ def test_self_check_passes_on_the_shipped_scenarios(hm, name):
     assert sim.check_kernel(tol=1e-10) is None
 
 
+def test_self_check_passes_on_a_robot_variant(variant_hm):
+    """The kernel reads the robot from the model it is given, not from constants: on a variant (every segment,
+    mass and the sole changed, a payload) its stages equal the reference path's as on the thesis robot."""
+    sim = Simulator(variant_hm, load_scenario(PARAMS / "sim1.yaml"), compiled=True)
+    assert sim.kernel is not None
+    assert sim.check_kernel(tol=1e-10) is None   # the thesis robot's bound (above)
+
+
 @pytest.mark.parametrize("target", ["controller", "actuators"])
 def test_self_check_catches_an_edited_reference_formula(hm, monkeypatch, target):
     """A reference formula changed by 0.1 % without its compiled twin (the upper-body law of eq. 5.90, or the
