@@ -253,7 +253,7 @@ class Run:
             from humanoid_sim.outputs.viewer import write_playback
 
             html.append(write_playback(out / "results.npz", out / "playback.html", hm=self.hm, traj=self.traj,
-                                       report=self.audit))
+                                       report=self.audit, disturbances=self.summary.get("disturbances")))
 
         play_now = play if playback and len(self.result.log) else None
         if stems and self.audit is not None and len(self.result.log):

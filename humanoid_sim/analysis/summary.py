@@ -69,6 +69,8 @@ def summarize(result: SimResult, scenario_name: str, engine: str) -> dict[str, A
                     "stance_tilt_max_rad": _f(ground["stance_tilt_max_rad"]),
                     "penetration_max_m": _f(ground["penetration_max_m"]),
                     "control_period_s": _f(ground["control_period_s"])})
+    if "disturbances" in result.extra:   # a scenario's pushes, terrain and sensing as applied (sim/disturbances.py)
+        out["disturbances"] = result.extra["disturbances"]
     td = [p.touchdown_error_m for p in result.phases if p.touchdown_error_m is not None]
     out["toe_touchdown_error_max_m"] = _f(max(td)) if td else None
     out["phase_log"] = [{"phase": p.index + 1, "name": p.name, "start": _f(p.t_start),

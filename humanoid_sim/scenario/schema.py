@@ -41,6 +41,7 @@ from humanoid_sim.references.chapter3 import PathParamError, PathParams
 from humanoid_sim.robot.variant import RobotVariant
 from humanoid_sim.scenario.actuators import ActuatorChoice, parse_actuators
 from humanoid_sim.scenario.balance import BalanceSettings, parse_balance
+from humanoid_sim.scenario.disturbances import Disturbances, parse_disturbances
 from humanoid_sim.scenario.fields import (
     Num,
     ScenarioError,
@@ -57,7 +58,8 @@ from humanoid_sim.scenario.thesis_controller import ControllerParams, parse_cont
 from humanoid_sim.scenario.yamlio import read_yaml
 
 SECTIONS = ("name", "description", "base", "path", "gait", "controller", "balance", "actuators", "robot",
-            "controller_class", "controller_settings", "reset", "simulation", "phase_switch", "contact")
+            "controller_class", "controller_settings", "reset", "simulation", "phase_switch", "contact",
+            "disturbances")
 REQUIRED = ("path",)
 RESET_KEYS = ("Wadj_qdot_LFFSSP_to_RFFDSP", "Wadj_qdot_RFFSSP_to_LFFDSP")
 METHODS = ("ode3", "rk4", "euler")
@@ -159,6 +161,7 @@ class Scenario:
         controller_settings: a user controller's own section, passed to its ``setup`` as ``ControlContext.settings``.
         actuators: a motor and gearbox per joint (:mod:`.actuators`), or None for the thesis's torque sources.
         robot: the body's variant (:mod:`.robot`), or None for the thesis robot.
+        disturbances: pushes, terrain, sensing noise and actuation delay (:mod:`.disturbances`), or None.
     """
 
     name: str
@@ -176,6 +179,7 @@ class Scenario:
     controller_settings: dict[str, Any] = field(default_factory=dict)
     actuators: ActuatorChoice | None = None
     robot: RobotVariant | None = None
+    disturbances: Disturbances | None = None
 
     @property
     def runs_thesis_controller(self) -> bool:
@@ -380,7 +384,8 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
     actuators = parse_actuators(src, doc.get("actuators") if robot_actuators is None else robot_actuators, folder)
     return Scenario(name=name, description=desc, path=path, controller=controller, W_adj=W_adj, simulation=sim,
                     switch=sw, contact=ct, source=source, controller_class=cc, gait=gait, balance=balance,
-                    controller_settings=user_settings, actuators=actuators, robot=robot)
+                    controller_settings=user_settings, actuators=actuators, robot=robot,
+                    disturbances=parse_disturbances(src, doc.get("disturbances")))
 
 
 NOT_INHERITED = ("name", "description")

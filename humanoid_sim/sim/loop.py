@@ -51,6 +51,7 @@ from humanoid_sim.interfaces.trace import Trace, trace_of_log
 from humanoid_sim.references.chapter3 import ReferenceTrajectory
 from humanoid_sim.robot.phases import Phase, SwitchThresholds, ssp_should_end
 from humanoid_sim.scenario.schema import Scenario
+from humanoid_sim.sim.disturbances import sensed, summary_entry
 from humanoid_sim.sim.status import RunStatus
 
 RUN_ERRORS: tuple[type[BaseException], ...] = (SimulationError, ControllerError, ContactError, CommandError,
@@ -120,7 +121,8 @@ class _Checked:
 class _Driven:
     """The checked controller's commands passed through the motors (``run``'s ``drive``)."""
 
-    def __init__(self, checked: _Checked, drive: Callable[[Command, Observation], Command]) -> None:
+    def __init__(self, checked: Callable[[Observation], Command],
+                 drive: Callable[[Command, Observation], Command]) -> None:
         self.checked = checked
         self.drive = drive
 
@@ -153,7 +155,8 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
     hm = getattr(engine, "hm", None)
     names = None if hm is None else CoordinateNames.of(hm)  # joints named in the messages
     checked = _Checked(controller, engine.model.nv, names)
-    control: Callable[[Observation], Command] = checked if drive is None else _Driven(checked, drive)
+    seen = sensed(scenario, checked, engine, h)   # a scenario's sensing noise and delay, else checked itself
+    control: Callable[[Observation], Command] = seen if drive is None else _Driven(seen, drive)
     t = 0.0
     engine.start(q0, hold if hold is not None else Phase(traj.phases[0].name))
     first_swing = traj.phases[0].swing_foot
@@ -237,6 +240,8 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
         extra["actuators"] = getattr(drive, "report", dict)()
     extra.update(getattr(controller, "run_info", lambda: {})())
     extra.update(getattr(engine, "run_info", lambda: {})())
+    if scenario.disturbances is not None:
+        extra["disturbances"] = summary_entry(extra, seen)
     names = [p.name for p in traj.phases]
     if hold is not None:
         names[0] = hold.value

@@ -32,6 +32,7 @@ from humanoid_sim.references.zmp.zmp_walk import initial_state, make_trajectory
 from humanoid_sim.robot.model import HumanoidModel
 from humanoid_sim.robot.phases import Phase
 from humanoid_sim.scenario.schema import Scenario
+from humanoid_sim.sim.disturbances import check_engine
 from humanoid_sim.sim.drive import Drive, with_motors
 from humanoid_sim.sim.loop import SimResult, run
 
@@ -94,6 +95,7 @@ class Simulator:
     def __init__(self, hm: HumanoidModel, scenario: Scenario, compiled: bool | None = None,
                  engine: str = "pinocchio", controller: Controller | None = None) -> None:
         self.drive: Drive | None = None
+        check_engine(scenario, engine)   # pushes and terrain need real ground (sim/disturbances.py)
         if scenario.actuators is not None:   # the motors' rotor inertia in every model, their envelopes on commands
             if engine == "thesis":
                 raise InputError("actuators: the thesis engine's equations (the NumPy oracle) have no rotor inertia; "

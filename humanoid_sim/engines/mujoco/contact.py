@@ -116,10 +116,12 @@ def _tables(mm: MujocoModel) -> _SoleTables:
         pair_group = np.full((n, n), -1, dtype=int)
         corners = {}
         signs = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1]], dtype=float)
+        ground = (mm.floor_geom, *mm.terrain_geoms)   # the floor and a scenario's terrain boxes
         for i, f in enumerate(FEET):
             for j, g in enumerate(mm.sole_geoms[f]):
                 foot[g], box[g] = i, j
-                pair_group[mm.floor_geom, g] = pair_group[g, mm.floor_geom] = 2 * i + j
+                for w in ground:
+                    pair_group[w, g] = pair_group[g, w] = 2 * i + j
                 corners[g] = signs * mm.model.geom_size[g]
         tables = _SoleTables(foot, box, pair_group.tolist(), pair_group, corners)
         mm._sole_tables = tables
@@ -208,11 +210,12 @@ def _sole_floor(mm: MujocoModel, foot_of: np.ndarray, geoms: np.ndarray
     L; MuJoCo's order within a foot): their contact indices, their sole geoms, and the sign that turns the contact
     force into the force on the foot (+1 when the sole is geom2, -1 when it is geom1; None when all are +1)."""
     g1, g2 = geoms[:, 0], geoms[:, 1]
-    on2 = (foot_of[g2] >= 0) & (g1 == mm.floor_geom)   # the force acts on geom2's body: the foot
+    # the other geom of a sole's contact is ground (the floor or a terrain box): the soles collide with nothing else
+    on2 = (foot_of[g2] >= 0) & (foot_of[g1] < 0)   # the force acts on geom2's body: the foot
     if on2.all():   # the usual case: MuJoCo puts the plane first, and only soles collide with it
         ids = np.argsort(foot_of[g2], kind="stable")
         return ids, g2[ids], None
-    on1 = (foot_of[g1] >= 0) & (g2 == mm.floor_geom)   # the force acts on geom1's body: minus it on the foot
+    on1 = (foot_of[g1] >= 0) & (foot_of[g2] < 0)   # the force acts on geom1's body: minus it on the foot
     keep = np.flatnonzero(on1 | on2)  # others are not sole-floor contacts (the model has none, by contype)
     geom = np.where(on2, g2, g1)[keep]
     order = np.argsort(foot_of[geom], kind="stable")

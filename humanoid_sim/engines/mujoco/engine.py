@@ -87,6 +87,7 @@ import pinocchio as pin
 from humanoid_sim.dynamics.contact import record_anchors
 from humanoid_sim.engines.mujoco import compiled as mjc
 from humanoid_sim.engines.mujoco.contact import FootContact, _cross, _tables, foot_contacts, sole_cop, sole_tilt
+from humanoid_sim.engines.mujoco.disturb import disturbance_info, scenario_pusher, scenario_terrain
 from humanoid_sim.engines.mujoco.ground import GroundMeter, ReferenceGroundMeter, end_loads, trunk_tilt
 from humanoid_sim.engines.mujoco.model import MujocoModelError, MujocoSettings
 from humanoid_sim.engines.mujoco.sim import MujocoSim, MujocoSimError
@@ -235,7 +236,8 @@ class MujocoEngine:
         contact = self.settings.contact or MujocoSettings.from_scenario(scenario)
         if compiled and not mjc.AVAILABLE:
             raise MujocoModelError("MujocoEngine(compiled=True): numba is not installed")
-        self.sim = MujocoSim(hm, contact, compiled=compiled)
+        self.terrain = scenario_terrain(hm, scenario, traj)   # a scenario's terrain boxes (disturb.py), or []
+        self.sim = MujocoSim(hm, contact, compiled=compiled, terrain=self.terrain)
         self.mm = self.sim.mm
         self.map = self.sim.map
         self._armature = float(self.settings.armature_kg_m2)
@@ -256,6 +258,9 @@ class MujocoEngine:
         self._no_sat = np.zeros(26, dtype=bool)
         elliptic = self.mm.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
         self.compiled = compiled is not False and mjc.AVAILABLE and elliptic
+        # the kernel's contact wrenches know the floor alone: with terrain the NumPy path reads them
+        self._wrench_kernel = self.compiled and not self.mm.terrain_geoms
+        self.pusher = scenario_pusher(hm, scenario, traj, self.mm, self.sim.data)   # None without pushes
         self._group = _tables(self.mm).pair_array
         self._wrench_bodies = np.array([self._body[b] for b in (1, 2, 3, 4)], dtype=np.intp)  # log rows
         self.q = self.v = None
@@ -288,6 +293,8 @@ class MujocoEngine:
         self._reset_measures()
         self._rows = RowBuffer(self._cols["width"])
         self._updates: list[tuple[np.ndarray, Any, Any, Any]] = []   # per control update: tau, T, saturated, T_cmd
+        if self.pusher is not None:
+            self.pusher.reset()
         self.sim.forward()
         end_loads(self.mm, self.sim.data, self._end, self.compiled)
 
@@ -305,7 +312,7 @@ class MujocoEngine:
         if not (n_ctrl >= 1 and abs(n_ctrl * period - h) <= 1e-9 * max(1.0, h)):
             raise MujocoSimError(f"loop step h = {h!r} s: expected a whole number of control periods "
                                  f"(MujocoEngineSettings.control_period_s = {period:g} s)")
-        phase, anchors, sim = self.phase, self.anchors, self.sim
+        phase, anchors, sim, pusher = self.phase, self.anchors, self.sim, self.pusher
         data = sim.data
         record: MujocoRecord | None = None
         q, v = self.q, self.v
@@ -317,6 +324,8 @@ class MujocoEngine:
             cmd = control(Observation(ti, k, phase, q, v, anchors, i, checks.plan_delay))
             tau = self._tau(q, cmd)
             self._updates.append((tau.copy(), cmd.T, cmd.saturated, cmd.T_cmd))
+            if pusher is not None:
+                pusher.apply(ti, period)
             # one MuJoCo step first: its acceleration and contact forces are those of the state at ti
             sim.hold(tau)
             sim.advance(1)
@@ -455,7 +464,7 @@ class MujocoEngine:
         fw, cop = row[c["fw"]].reshape(2, 6), row[c["cop"]].reshape(2, 3)
         bf, bm = row[c["bf"]].reshape(4, 3), row[c["bm"]].reshape(4, 3)
         done = False
-        if self.compiled:
+        if self._wrench_kernel:
             con = data.contact
             done = mjc.contact_wrenches(con.geom, con.pos, con.frame, con.dim, con.efc_address, data.efc_force,
                                         self._group, self.mm.floor_geom, self._wrench_bodies, data.xipos,
@@ -564,7 +573,8 @@ class MujocoEngine:
                            "stance_tilt_max_rad": float(g.stance_tilt_max),
                            "penetration_max_m": float(g.penetration_max),
                            "control_period_s": self.settings.control_period_s,
-                           "timestep_s": self.sim.timestep, **g.report()}}
+                           "timestep_s": self.sim.timestep, **g.report()},
+                **disturbance_info(self.terrain, self.pusher)}
 
     # ------------------------------------------------------------------ what the phase selector reads
     def hip_com(self) -> np.ndarray:

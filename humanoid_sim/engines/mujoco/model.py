@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -35,6 +36,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from humanoid_sim.engines.mujoco.disturb import TerrainBox, add_terrain
 from humanoid_sim.errors import InputError
 from humanoid_sim.robot.model import FOOT_BODY, TOE_BODY, HumanoidModel
 from humanoid_sim.robot.sole import SoleGeometry
@@ -140,7 +142,8 @@ class MujocoModel:
     """The compiled model and the ids the engine needs.
 
     ``sole_geoms[foot]`` = (toe geom id, main-body geom id); ``foot_bodies[foot]`` = (toe body id, main body id);
-    ``sole_geometry`` the sole rectangle the boxes were built from; ``base_body`` the lower-trunk body id.
+    ``sole_geometry`` the sole rectangle the boxes were built from; ``base_body`` the lower-trunk body id;
+    ``terrain_geoms`` the ids of a scenario's terrain boxes (:mod:`.disturb`), ground as the floor is.
     """
 
     model: mujoco.MjModel
@@ -151,6 +154,7 @@ class MujocoModel:
     base_body: int
     sole_geometry: SoleGeometry
     total_mass: float = field(default=0.0)
+    terrain_geoms: tuple[int, ...] = ()
 
     def geom_foot(self) -> dict[int, str]:
         """Sole geom id -> foot ('R' / 'L')."""
@@ -211,8 +215,11 @@ def _sole_box(hm: HumanoidModel, boxes: dict, body: int, corners: np.ndarray) ->
     return link, centre, size / 2
 
 
-def build_model(hm: HumanoidModel, settings: MujocoSettings | None = None) -> MujocoModel:
-    """Compile the MuJoCo model of ``hm`` (its URDF and sole geometry) with ``settings``."""
+def build_model(hm: HumanoidModel, settings: MujocoSettings | None = None,
+                terrain: Sequence[TerrainBox] = ()) -> MujocoModel:
+    """Compile the MuJoCo model of ``hm`` (its URDF and sole geometry) with ``settings``, and a scenario's
+    ``terrain`` boxes (:func:`humanoid_sim.engines.mujoco.disturb.add_terrain`: static, the floor's contact
+    parameters)."""
     settings = MujocoSettings() if settings is None else settings
     if not isinstance(settings, MujocoSettings):
         raise MujocoModelError(f"settings: expected a MujocoSettings, got {type(settings).__name__}")
@@ -250,6 +257,7 @@ def build_model(hm: HumanoidModel, settings: MujocoSettings | None = None) -> Mu
     floor = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0],
                                     contype=0, conaffinity=1, condim=3, friction=[settings.friction, 0.0, 0.0],
                                     solref=list(settings.solref), solimp=list(settings.solimp))
+    terrain_names = add_terrain(spec, terrain, settings.friction, settings.solref, settings.solimp)
     sole = SoleGeometry.from_model(hm)
     boxes = _urdf_boxes(hm.urdf_path)
     # The main body's part of the sole: heel to the toe joint (the toe body carries the rest, to the toe tip).
@@ -285,4 +293,5 @@ def build_model(hm: HumanoidModel, settings: MujocoSettings | None = None) -> Mu
     foot_bodies = {f: (bid(names[(f, TOE_BODY[f])][1]), bid(names[(f, FOOT_BODY[f])][1])) for f in FEET}
     return MujocoModel(model=model, settings=settings, sole_geoms=sole_geoms, foot_bodies=foot_bodies,
                        floor_geom=gid("floor"), base_body=bid(BASE_BODY), sole_geometry=sole,
-                       total_mass=float(np.sum(model.body_mass)))
+                       total_mass=float(np.sum(model.body_mass)),
+                       terrain_geoms=tuple(gid(n) for n in terrain_names))

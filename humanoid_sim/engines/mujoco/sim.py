@@ -17,12 +17,14 @@ that reads the state between the MuJoCo steps of one control period holds once a
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import mujoco
 import numpy as np
 
 from humanoid_sim.engines.mujoco import compiled as mjc
 from humanoid_sim.engines.mujoco.contact import FootContact, foot_contacts
+from humanoid_sim.engines.mujoco.disturb import TerrainBox
 from humanoid_sim.engines.mujoco.model import MujocoModel, MujocoSettings, build_model
 from humanoid_sim.engines.mujoco.state import StateMap
 from humanoid_sim.errors import SimulationError
@@ -42,13 +44,14 @@ class MujocoSim:
     """The thesis humanoid in MuJoCo, driven by joint torques (see the module docstring).
 
     ``compiled``: map the state and the torques with :mod:`.compiled`'s functions (None = when numba is installed,
-    False = never: :class:`.state.StateMap`'s NumPy maps, the same numbers)."""
+    False = never: :class:`.state.StateMap`'s NumPy maps, the same numbers).  ``terrain``: a scenario's terrain
+    boxes (:mod:`.disturb`)."""
 
     def __init__(self, hm: HumanoidModel, settings: MujocoSettings | None = None,
-                 compiled: bool | None = None) -> None:
+                 compiled: bool | None = None, terrain: Sequence[TerrainBox] = ()) -> None:
         self.hm = hm
         self.compiled = compiled is not False and mjc.AVAILABLE
-        self.mm: MujocoModel = build_model(hm, settings)
+        self.mm: MujocoModel = build_model(hm, settings, terrain)
         self.model = self.mm.model
         self.data = mujoco.MjData(self.model)
         self.map = StateMap.from_models(hm, self.model)

@@ -24,6 +24,7 @@ try:
 except ImportError:  # pragma: no cover - umsgpack packs the same bytes, slower
     msgpack = None
 
+from humanoid_sim.outputs.viewer.disturbances import add_objects, push_frames
 from humanoid_sim.outputs.viewer.frames import (
     DISPLAY_FPS,
     FORCE_SCALE,
@@ -262,17 +263,22 @@ def playback_fps(duration_s: float, fps: float = DISPLAY_FPS, max_frames: int = 
 
 def record(results_npz: str | Path, hm: HumanoidModel | None = None, traj: ReferenceTrajectory | None = None,
            *, fps: float = DISPLAY_FPS, force_scale: float = FORCE_SCALE,
-           repetitions: int = 1, max_frames: int = MAX_FRAMES,
-           report: AuditReport | None = None) -> tuple[_RecordingWindow, PlaybackFrames]:
+           repetitions: int = 1, max_frames: int = MAX_FRAMES, report: AuditReport | None = None,
+           disturbances: dict[str, Any] | None = None) -> tuple[_RecordingWindow, PlaybackFrames]:
     """The recorded scene of a run (every meshcat command, as the browser receives them) and its frames: sampled
-    at ``fps``, or at the lower rate that keeps a long walk to ``max_frames`` frames (:func:`playback_fps`)."""
+    at ``fps``, or at the lower rate that keeps a long walk to ``max_frames`` frames (:func:`playback_fps`);
+    ``disturbances``: summary.json's entry of a scenario's pushes and terrain, drawn too (:mod:`.disturbances`)."""
     r, hm = _load_inputs(results_npz, hm)
     t = np.asarray(r["t"], dtype=float)
     fps = playback_fps(float(t[-1] - t[0]), fps, max_frames)
     fr = build_frames(r, hm, traj, fps=fps, force_scale=force_scale, report=report)
+    if disturbances is not None:
+        push_frames(fr, r, hm, disturbances)
     window = _RecordingWindow()
     vis = meshcat.Visualizer(window=window)
     setup_scene(vis, r, hm, traj, fr)
+    if disturbances is not None:
+        add_objects(vis, disturbances)
     vis.set_animation(_animation(vis, fr, fps), play=True, repetitions=repetitions)
     return window, fr
 
@@ -280,7 +286,7 @@ def record(results_npz: str | Path, hm: HumanoidModel | None = None, traj: Refer
 def write_playback(results_npz: str | Path, out_html: str | Path, hm: HumanoidModel | None = None,
                    traj: ReferenceTrajectory | None = None, *, fps: float = DISPLAY_FPS,
                    force_scale: float = FORCE_SCALE, repetitions: int = 1, max_frames: int = MAX_FRAMES,
-                   report: AuditReport | None = None) -> Path:
+                   report: AuditReport | None = None, disturbances: dict[str, Any] | None = None) -> Path:
     """Write ``out_html``: a self-contained meshcat recording of the run that opens offline in a browser.
 
     The animation (sampled at ``fps``; a walk longer than ``max_frames`` frames at the rate that fits,
@@ -288,12 +294,13 @@ def write_playback(results_npz: str | Path, out_html: str | Path, hm: HumanoidMo
     and scrubs it, and ``playback.html#t=3.5`` opens it paused at t = 3.5 s.  A corner box shows the simulation time
     and the phase.  The size stays bounded: keys of a node at rest are dropped (:func:`prune_keys`), animation
     values are single floats, and at most ``max_frames`` frames are kept.  ``report``: the run's contact audit when
-    the caller has it (else it is computed anew).  Returns the path written.
+    the caller has it (else it is computed anew).  ``disturbances``: summary.json's entry of a scenario's pushes and
+    terrain, drawn as arrows and boxes (:mod:`.disturbances`).  Returns the path written.
     """
     from humanoid_sim.interfaces.log import atomic_write_text
 
     window, fr = record(results_npz, hm, traj, fps=fps, force_scale=force_scale, repetitions=repetitions,
-                        max_frames=max_frames, report=report)
+                        max_frames=max_frames, report=report, disturbances=disturbances)
     html = window.get_scene(title=f"humanoid_sim playback: {Path(results_npz).parent.name}", overlay=_overlay(fr))
     out = Path(out_html)
     atomic_write_text(out, html)
