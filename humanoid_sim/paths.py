@@ -1,8 +1,8 @@
 """Where the package's data lies: the robot description, the shipped scenarios and sweeps.
 
 The files are package data (``humanoid_sim/data/``), so a built wheel carries them. In the repository,
-``humanoid_sim/data/models``, ``params`` and ``sweeps`` point at the top-level ``models/``, ``scripts/params/`` and
-``scripts/sweeps/``, where a developer edits them.
+``humanoid_sim/data/models``, ``params``, ``sweeps`` and ``designs`` point at the top-level ``models/``,
+``scripts/params/``, ``scripts/sweeps/`` and ``scripts/designs/``, where a developer edits them.
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ SCENARIOS_DIR = DATA_DIR / "params"
 """The shipped scenarios: the thesis's ``sim1``-``sim3`` and the feasible ``*_zmp`` walks."""
 SWEEPS_DIR = DATA_DIR / "sweeps"
 """The shipped sweep files."""
+DESIGNS_DIR = DATA_DIR / "designs"
+"""The shipped design files of ``humanoid-optimize``."""
 
 
 def cache_dir() -> Path:
@@ -52,5 +54,5 @@ def scenario_path(scenario: str | Path) -> Path:
                      f"one of {', '.join(scenario_names())}")
 
 
-__all__ = ["DATA_DIR", "MODELS_DIR", "PACKAGE_DIR", "SCENARIOS_DIR", "SWEEPS_DIR", "cache_dir", "scenario_names",
-           "scenario_path"]
+__all__ = ["DATA_DIR", "DESIGNS_DIR", "MODELS_DIR", "PACKAGE_DIR", "SCENARIOS_DIR", "SWEEPS_DIR", "cache_dir",
+           "scenario_names", "scenario_path"]

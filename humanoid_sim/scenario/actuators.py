@@ -12,6 +12,7 @@ what it was).  With it, each joint named gets a :class:`humanoid_sim.robot.motor
         right_knee: osl_knee         # ... one joint group (humanoid_sim.robot.actuators.GROUPS) ...
         theta11: mini_cheetah_knee   # ... one thesis joint variable; the most specific key wins
         neck: null                   # no motor: the thesis's torque source
+      gear_ratio: {hip: 80, theta3: 12}   # optional: another gearbox for these joints' motors (same keys)
       rotor_inertia: true            # optional: false leaves the rotors' inertia out of the dynamics (a what-if)
 
 What a motor changes (:mod:`humanoid_sim.sim.drive`): its reflected rotor inertia N^2 J_r joins the joint's inertia
@@ -24,7 +25,7 @@ temperature over the walk.
 from __future__ import annotations
 
 import difflib
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +36,7 @@ from humanoid_sim.robot.model import THETA_NAMES
 from humanoid_sim.robot.motors import CATALOGUE, MotorSpec, load_catalogue
 from humanoid_sim.scenario.fields import ScenarioError
 
-KEYS = ("catalogue", "joints", "rotor_inertia")
+KEYS = ("catalogue", "joints", "gear_ratio", "rotor_inertia")
 """The section's keys."""
 
 
@@ -58,11 +59,13 @@ class ActuatorChoice:
         catalogue: the catalogue file the motors come from.
         rotor_inertia: whether the rotors' reflected inertia joins the dynamics (False: the same motors' envelopes
             and electrical model on the rigid bodies alone, to see what the rotors change).
+        gear_ratios: the joints whose gearbox the section changed -> their gear ratio N (already in ``motors``).
     """
 
     motors: dict[str, MotorSpec]
     catalogue: str
     rotor_inertia: bool = True
+    gear_ratios: dict[str, float] = field(default_factory=dict)
 
     def armature(self) -> np.ndarray:
         """Reflected rotor inertia N^2 J_r per thesis joint variable (26,, eq. 4.1 order), kg m^2; 0 without motor
@@ -72,8 +75,38 @@ class ActuatorChoice:
 
     def describe(self) -> dict[str, Any]:
         """For summary.json: the catalogue, each joint's motor name, and whether the rotors' inertia is in."""
-        return {"catalogue": self.catalogue, "rotor_inertia": self.rotor_inertia,
-                "joints": {th: spec.name for th, spec in self.motors.items()}}
+        out = {"catalogue": self.catalogue, "rotor_inertia": self.rotor_inertia,
+               "joints": {th: spec.name for th, spec in self.motors.items()}}
+        if self.gear_ratios:
+            out["gear_ratio"] = dict(self.gear_ratios)
+        return out
+
+
+def _per_joint(src: str, where: str, mapping: dict) -> dict[str, Any]:
+    """Resolve a mapping of joint keys (``all``, a joint group with or without its side, a thesis joint variable) to
+    values per thesis joint variable; the most specific key wins."""
+    sideless, groups = _sideless(), {g.name: g for g in GROUPS}
+    rank: dict[str, tuple[int, Any]] = {}   # theta -> (specificity, value)
+    for key, value in mapping.items():
+        if key == "all":
+            level, thetas = 0, list(THETA_NAMES)
+        elif key in sideless:
+            level, thetas = 1, [th for g in sideless[key] for th in groups[g].thetas]
+        elif key in groups:
+            level, thetas = 2, list(groups[key].thetas)
+        elif key in THETA_NAMES:
+            level, thetas = 3, [key]
+        else:
+            names = ["all", *sideless, *groups, *THETA_NAMES]
+            close = difflib.get_close_matches(str(key), names, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ScenarioError(f"{src}: {where}.{key}: not a joint{hint}; expected all, "
+                                f"{', '.join(sideless)}, a joint group ({', '.join(groups)}) or a thesis joint "
+                                "variable (theta3 ... theta27)")
+        for th in thetas:
+            if th not in rank or rank[th][0] <= level:
+                rank[th] = (level, value)
+    return {th: rank[th][1] for th in THETA_NAMES if th in rank}
 
 
 def parse_actuators(src: str, raw: object, folder: Path | None = None) -> ActuatorChoice | None:
@@ -112,37 +145,33 @@ def parse_actuators(src: str, raw: object, folder: Path | None = None) -> Actuat
     if not isinstance(joints, dict) or not joints:
         raise ScenarioError(f"{src}: actuators.joints = {joints!r}: expected a mapping of joints (all, a joint group "
                             "with or without its side, or a thesis joint variable) to catalogue names or null")
-    sideless, groups = _sideless(), {g.name: g for g in GROUPS}
-    rank: dict[str, tuple[int, str | None]] = {}   # theta -> (specificity, motor name)
     for key, name in joints.items():
         if name is not None and (not isinstance(name, str) or name not in catalogue):
             close = difflib.get_close_matches(str(name), list(catalogue), n=1)
             raise ScenarioError(f"{src}: actuators.joints.{key} = {name!r}: not in the catalogue {str(path)!r}"
                                 f"{f' (did you mean {close[0]!r}?)' if close else ''}; expected one of "
                                 f"{', '.join(catalogue)} or null")
-        if key == "all":
-            level, thetas = 0, list(THETA_NAMES)
-        elif key in sideless:
-            level, thetas = 1, [th for g in sideless[key] for th in groups[g].thetas]
-        elif key in groups:
-            level, thetas = 2, list(groups[key].thetas)
-        elif key in THETA_NAMES:
-            level, thetas = 3, [key]
-        else:
-            names = ["all", *sideless, *groups, *THETA_NAMES]
-            close = difflib.get_close_matches(str(key), names, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise ScenarioError(f"{src}: actuators.joints.{key}: not a joint{hint}; expected all, "
-                                f"{', '.join(sideless)}, a joint group ({', '.join(groups)}) or a thesis joint "
-                                "variable (theta3 ... theta27)")
-        for th in thetas:
-            if th not in rank or rank[th][0] <= level:
-                rank[th] = (level, name)
-    motors = {th: catalogue[name] for th, (_, name) in rank.items() if name is not None}
+    chosen = _per_joint(src, "actuators.joints", joints)
+    motors = {th: catalogue[name] for th, name in chosen.items() if name is not None}
+    ratios, changed = raw.get("gear_ratio"), {}
+    if ratios is not None:
+        if not isinstance(ratios, dict) or not ratios:
+            raise ScenarioError(f"{src}: actuators.gear_ratio = {ratios!r}: expected a mapping of joints (as in "
+                                "actuators.joints) to gear ratios")
+        for key, n in ratios.items():
+            if isinstance(n, bool) or not isinstance(n, (int, float)) or not 1.0 <= n <= 1000.0:
+                raise ScenarioError(f"{src}: actuators.gear_ratio.{key} = {n!r}: expected a gear ratio N in "
+                                    "[1, 1000] (motor speed / joint speed)")
+        for th, n in _per_joint(src, "actuators.gear_ratio", ratios).items():
+            if th not in motors:
+                raise ScenarioError(f"{src}: actuators.gear_ratio: {th} has no motor (actuators.joints); expected "
+                                    "gear ratios for joints with a motor only")
+            motors[th] = replace(motors[th], gear_ratio=float(n))
+            changed[th] = float(n)
     rotor = raw.get("rotor_inertia", True)
     if not isinstance(rotor, bool):
         raise ScenarioError(f"{src}: actuators.rotor_inertia = {rotor!r}: expected true or false")
-    return ActuatorChoice({th: motors[th] for th in THETA_NAMES if th in motors}, str(path), rotor)
+    return ActuatorChoice({th: motors[th] for th in THETA_NAMES if th in motors}, str(path), rotor, changed)
 
 
 __all__ = ["ActuatorChoice", "KEYS", "parse_actuators"]

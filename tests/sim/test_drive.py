@@ -42,6 +42,25 @@ def test_the_most_specific_key_chooses_each_joints_motor() -> None:
     assert not off.armature().any() and len(off.motors) == 26
 
 
+def test_a_gear_ratio_changes_the_gearbox_and_nothing_else() -> None:
+    """``gear_ratio`` replaces N on the joints it names (most specific key wins, as for the motors): the joint-side
+    stall torque N k_t I_max and no-load speed U / (k_t N) follow N (the DC-motor relations computed here, not by
+    the motor module), the reflected inertia is N^2 J_r, every other constant is the catalogue's."""
+    cat = load_catalogue()
+    c = parse_actuators("x.yaml", {"joints": {"all": "mini_cheetah_knee"}, "gear_ratio": {"all": 12, "hip": 30}})
+    base = cat["mini_cheetah_knee"]
+    hip, knee = c.motors["theta15"], c.motors["theta11"]
+    assert (hip.gear_ratio, knee.gear_ratio) == (30.0, 12.0)
+    assert c.gear_ratios["theta15"] == 30.0 and c.describe()["gear_ratio"]["theta11"] == 12.0
+    for m, n in ((hip, 30.0), (knee, 12.0)):
+        assert m.torque_constant == base.torque_constant and m.peak_current == base.peak_current
+        # efficiency 1 and I_max < U / R for this motor: stall = N k_t I_max
+        assert m.stall_torque == pytest.approx(n * base.torque_constant * base.peak_current, rel=1e-14)
+        assert m.no_load_speed == pytest.approx(base.bus_voltage / (base.torque_constant * n), rel=1e-14)
+        assert c.armature()[THETA_NAMES.index("theta15")] == pytest.approx(30.0 ** 2 * base.rotor_inertia, rel=1e-15)
+    assert "gear_ratio" not in parse_actuators("x.yaml", {"joints": {"all": "osl_knee"}}).describe()
+
+
 @pytest.mark.parametrize("section, words", [
     ({"joints": {"kne": "osl_knee"}}, ["actuators.joints.kne", "did you mean 'knee'"]),
     ({"joints": {"knee": "osl"}}, ["actuators.joints.knee = 'osl'", "not in the catalogue"]),
@@ -49,6 +68,9 @@ def test_the_most_specific_key_chooses_each_joints_motor() -> None:
     ({"joints": {}}, ["actuators.joints = {}", "expected a mapping"]),
     ({"catalogue": "missing.yaml", "joints": {"all": "osl_knee"}}, ["actuators.catalogue", "missing.yaml"]),
     ({"joints": {"all": "osl_knee"}, "rotor_inertia": "yes"}, ["actuators.rotor_inertia = 'yes'", "true or false"]),
+    ({"joints": {"all": "osl_knee"}, "gear_ratio": {"hip": 0.5}}, ["actuators.gear_ratio.hip = 0.5", "[1, 1000]"]),
+    ({"joints": {"knee": "osl_knee"}, "gear_ratio": {"hip": 50}}, ["actuators.gear_ratio: theta13 has no motor"]),
+    ({"joints": {"all": "osl_knee"}, "gear_ratio": {"hips": 50}}, ["actuators.gear_ratio.hips", "did you mean 'hip'"]),
 ])
 def test_a_bad_actuators_section_exits_2_naming_the_field(tmp_path: Path, section: dict, words: list[str]) -> None:
     import yaml
