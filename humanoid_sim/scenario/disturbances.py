@@ -20,6 +20,10 @@ Without the section every walk is what it was.  With it::
         joint_velocity_radps: 0.0
         seed: 0
         delay_s: 0.02
+      model:                           # the engine's robot and ground differ from the controller's model
+        payload: {mass_kg: 20, body: upper_trunk}   # a mass the controller does not know of
+        mass_scale: {all: 1.25}        # every mass (and inertia) 25 % above what the controller assumes
+        friction: 0.5                  # the engine's ground (MuJoCo); the controller keeps contact's
 
 Pushes:
 
@@ -61,6 +65,11 @@ noise of the given standard deviations on the base twist ``v[:3]`` (m/s) and ``v
 frame, Pinocchio's convention), the joint angles ``q[7:]`` (rad) and rates ``v[6:]`` (rad/s) the controller's
 ``Observation`` carries, a fresh draw at every controller call from a generator seeded with ``seed``; and an
 actuation delay ``delay_s``, rounded to a whole number of the engine's control periods.
+
+Model (every engine; :class:`humanoid_sim.sim.simulate.Simulator`): the engine runs a robot variant
+(:mod:`humanoid_sim.robot.variant`) whose masses are the scenario robot's times ``mass_scale`` and which carries
+``payload`` (not with a ``robot.payload`` too), on ground of ``friction``; the controller, the plan and the contact
+audit keep the scenario's robot and friction.  Masses only: the kinematics, and so the start posture, are shared.
 """
 
 from __future__ import annotations
@@ -71,9 +80,12 @@ from typing import Any
 
 import numpy as np
 
+from humanoid_sim.robot.variant import Payload
 from humanoid_sim.scenario.fields import Num, ScenarioError, check_keys, mapping_of, number, show, type_hint, vector
+from humanoid_sim.scenario.robot import parse_mass_scale, parse_payload
 
-KEYS = ("pushes", "terrain", "sensing")
+KEYS = ("pushes", "terrain", "sensing", "model")
+MODEL_KEYS = ("payload", "mass_scale", "friction")
 PUSH_KEYS = ("body", "force_N", "impulse_Ns", "direction", "direction_deg", "frame", "start", "duration_s")
 FRAMES = ("heading", "world")
 BOX_KINDS = ("box", "step", "bar", "tile")
@@ -216,6 +228,29 @@ class Sensing:
 
 
 @dataclass(frozen=True)
+class EngineModel:
+    """How the engine's world differs from the model the controller is given (``disturbances.model``).
+
+    Attributes:
+        payload: a point mass on the engine's robot the controller does not know of, or None.
+        mass_scale: mass factors of the engine's robot (``all``, a segment or a body), on top of the scenario's.
+        friction: the ground's friction coefficient in the engine (MuJoCo), or None for ``contact``'s.
+    """
+
+    payload: Payload | None = None
+    mass_scale: tuple[tuple[str, float], ...] = ()
+    friction: float | None = None
+
+    def describe(self) -> dict[str, Any]:
+        """For summary.json."""
+        p = self.payload
+        return {"payload": None if p is None else {"mass_kg": p.mass_kg, "body": p.body,
+                                                   "position_m": None if p.position_m is None
+                                                   else list(p.position_m)},
+                "mass_scale": dict(self.mass_scale), "friction": self.friction}
+
+
+@dataclass(frozen=True)
 class Disturbances:
     """The validated ``disturbances`` section (module docstring)."""
 
@@ -223,6 +258,7 @@ class Disturbances:
     terrain: tuple[TerrainPiece, ...] = ()
     sensing: Sensing | None = None
     source: str = field(default="<dict>", compare=False)
+    model: EngineModel | None = None
 
     def describe_sensing(self) -> dict[str, Any] | None:
         """The sensing settings for summary.json, or None."""
@@ -415,8 +451,20 @@ def parse_disturbances(src: str, raw: Any) -> Disturbances | None:
     terrain = tuple(_terrain(src, f"disturbances.terrain[{i}]", p)
                     for i, p in enumerate(_list(src, "disturbances.terrain", d.get("terrain"))))
     sensing = None if d.get("sensing") is None else _sensing(src, d["sensing"])
-    return Disturbances(pushes, terrain, sensing, src)
+    model = None if d.get("model") is None else _model(src, d["model"])
+    return Disturbances(pushes, terrain, sensing, src, model)
 
 
-__all__ = ["DEFAULT_BODY", "Disturbances", "KEYS", "Push", "PushStart", "Sensing", "TerrainPiece",
+def _model(src: str, raw: Any) -> EngineModel:
+    where = "disturbances.model"
+    d = mapping_of(src, where, raw)
+    check_keys(src, where, d, MODEL_KEYS)
+    payload = None if d.get("payload") is None else parse_payload(src, f"{where}.payload", d["payload"])
+    masses = parse_mass_scale(src, f"{where}.mass_scale", d.get("mass_scale", {}))
+    friction = (None if d.get("friction") is None else
+                number(src, f"{where}.friction", d["friction"], Num("a friction coefficient", 0.0, 5.0, lo_open=True)))
+    return EngineModel(payload, masses, friction)
+
+
+__all__ = ["DEFAULT_BODY", "Disturbances", "EngineModel", "KEYS", "Push", "PushStart", "Sensing", "TerrainPiece",
            "parse_disturbances", "resolve_start", "slope_normal"]

@@ -70,6 +70,31 @@ class RobotSection(NamedTuple):
     hip_rise_m: float
 
 
+def parse_mass_scale(src: str, where: str, raw: Any) -> tuple[tuple[str, float], ...]:
+    """A ``mass_scale`` mapping (``all``, a segment or a body -> factor in [0.1, 10]), sorted by key."""
+    return _factors(src, where, raw, ("all", *MASS_GROUPS, *BODY_NAMES), MASS)
+
+
+def parse_payload(src: str, where: str, raw: Any) -> Payload:
+    """A ``payload`` mapping (``mass_kg``, ``body``, ``position_m``) as a :class:`Payload`.
+
+    Raises:
+        ScenarioError: naming ``where`` and the field.
+    """
+    p = mapping_of(src, where, raw)
+    check_keys(src, where, p, ("mass_kg", "body", "position_m"))
+    if "mass_kg" not in p:
+        raise ScenarioError(f"{src}: {where}.mass_kg: missing; expected a mass in kg >= 0")
+    mass = number(src, f"{where}.mass_kg", p["mass_kg"], Num("a mass in kg", 0.0, 100.0))
+    body = p.get("body", "upper_trunk")
+    if body not in PAYLOAD_BODIES:
+        raise ScenarioError(f"{src}: {where}.body = {show(body)}: expected one of {', '.join(PAYLOAD_BODIES)}")
+    pos = p.get("position_m")
+    position = None if pos is None else tuple(vector(src, f"{where}.position_m", pos, 3,
+                                                     Num("a coordinate in m", -1.0, 1.0), "coordinates in m"))
+    return Payload(mass, str(body), position)  # type: ignore[arg-type]
+
+
 def parse_robot(src: str, raw: Any) -> RobotSection | None:
     """The ``robot`` section (module docstring), or None when absent.
 
@@ -81,28 +106,14 @@ def parse_robot(src: str, raw: Any) -> RobotSection | None:
     d = mapping_of(src, "robot", raw)
     check_keys(src, "robot", d, KEYS)
     lengths = _factors(src, "robot.length_scale", d.get("length_scale", {}), tuple(SEGMENTS), LENGTH)
-    masses = _factors(src, "robot.mass_scale", d.get("mass_scale", {}), ("all", *MASS_GROUPS, *BODY_NAMES), MASS)
+    masses = parse_mass_scale(src, "robot.mass_scale", d.get("mass_scale", {}))
     sole = mapping_of(src, "robot.sole", d.get("sole", {}))
     check_keys(src, "robot.sole", sole, ("length_m", "width_m"))
     length = (None if sole.get("length_m") is None
               else number(src, "robot.sole.length_m", sole["length_m"], Num("a sole length in m", 0.1, 0.5)))
     width = (None if sole.get("width_m") is None
              else number(src, "robot.sole.width_m", sole["width_m"], Num("a sole width in m", 0.03, 0.3)))
-    payload = None
-    if d.get("payload") is not None:
-        p = mapping_of(src, "robot.payload", d["payload"])
-        check_keys(src, "robot.payload", p, ("mass_kg", "body", "position_m"))
-        if "mass_kg" not in p:
-            raise ScenarioError(f"{src}: robot.payload.mass_kg: missing; expected a mass in kg >= 0")
-        mass = number(src, "robot.payload.mass_kg", p["mass_kg"], Num("a mass in kg", 0.0, 100.0))
-        body = p.get("body", "upper_trunk")
-        if body not in PAYLOAD_BODIES:
-            raise ScenarioError(f"{src}: robot.payload.body = {show(body)}: expected one of "
-                                f"{', '.join(PAYLOAD_BODIES)}")
-        pos = p.get("position_m")
-        position = None if pos is None else tuple(vector(src, "robot.payload.position_m", pos, 3,
-                                                         Num("a coordinate in m", -1.0, 1.0), "coordinates in m"))
-        payload = Payload(mass, str(body), position)  # type: ignore[arg-type]
+    payload = None if d.get("payload") is None else parse_payload(src, "robot.payload", d["payload"])
     variant = RobotVariant(length_scale=lengths, mass_scale=masses, sole_length_m=length, sole_width_m=width,
                            payload=payload)
     if length is not None:
@@ -117,4 +128,4 @@ def parse_robot(src: str, raw: Any) -> RobotSection | None:
     return RobotSection(variant, d.get("actuators"), variant.hip_height_change() if hip == "follow_legs" else 0.0)
 
 
-__all__ = ["HIP_HEIGHT", "KEYS", "RobotSection", "parse_robot"]
+__all__ = ["HIP_HEIGHT", "KEYS", "RobotSection", "parse_mass_scale", "parse_payload", "parse_robot"]

@@ -123,20 +123,75 @@ class Sensed:
                 "control_period_s": self.period, "controller_calls": self.calls}
 
 
+class Unsolved:
+    """The controller's commands without the motion it solved on its own model: an engine whose robot differs
+    (``disturbances.model``) integrates the torques under its own dynamics."""
+
+    def __init__(self, inner: Callable[[Observation], Command]) -> None:
+        self.inner = inner
+
+    def __call__(self, obs: Observation) -> Command:
+        return replace(self.inner(obs), motion=None, motion_model=None, extra=None)
+
+
 def sensed(scenario: Any, control: Callable[[Observation], Command], engine: Any,
            h: float) -> Callable[[Observation], Command]:
-    """``control`` seen through the scenario's sensing (:class:`Sensed`), or ``control`` itself without it."""
+    """``control`` seen through the scenario's sensing (:class:`Sensed`; :class:`Unsolved` when only the engine's
+    model differs), or ``control`` itself without either."""
     dist = scenario.disturbances
-    if dist is None or dist.sensing is None:
+    if dist is None or (dist.sensing is None and dist.model is None):
         return control
+    if dist.sensing is None:
+        return Unsolved(control)
     return Sensed(control, dist.sensing, control_period(engine, h))
 
 
-def summary_entry(extra: dict[str, Any], control: Any) -> dict[str, Any]:
+def engine_world(hm: Any, scenario: Any) -> tuple[Any, Any]:
+    """The robot model and the scenario the engine runs: ``(hm, scenario)`` themselves, or with
+    ``disturbances.model`` the scenario robot's variant with its masses scaled and the payload added (the motors'
+    rotor inertia as in ``hm``) and the scenario with the engine's ground friction.
+
+    Raises:
+        InputError: a payload both in ``robot`` and in ``disturbances.model``.
+    """
+    dist = scenario.disturbances
+    if dist is None or dist.model is None:
+        return hm, scenario
+    from humanoid_sim.robot.variant import RobotVariant, variant_model
+    from humanoid_sim.sim.drive import with_motors
+
+    model = dist.model
+    body = scenario.robot if scenario.robot is not None else RobotVariant()
+    if model.payload is not None and body.payload is not None and body.payload.mass_kg > 0.0:
+        raise InputError("disturbances.model.payload: the scenario's robot already carries a payload "
+                         "(robot.payload); expected the engine's extra mass in one of them")
+    scales = dict(body.mass_scale)
+    for key, f in model.mass_scale:
+        scales[key] = scales.get(key, 1.0) * f
+    variant = replace(body, mass_scale=tuple(sorted(scales.items())),
+                      payload=model.payload if model.payload is not None else body.payload)
+    hm_engine = variant_model(variant)
+    if scenario.actuators is not None:
+        hm_engine = with_motors(hm_engine, scenario.actuators)
+    sc = scenario
+    if model.friction is not None:
+        sc = replace(scenario, contact=replace(scenario.contact, friction_coefficient=model.friction))
+    return hm_engine, sc
+
+
+def summary_entry(extra: dict[str, Any], control: Any, scenario: Any = None, engine: Any = None) -> dict[str, Any]:
     """summary.json's ``disturbances`` entry: the engine's ``pushes`` and ``terrain`` (taken out of ``extra``, its
-    ``run_info``; [] when it applied none) and the sensing report (None without sensing)."""
-    return {"pushes": extra.pop("pushes", []), "terrain": extra.pop("terrain", []),
-            "sensing": control.report() if isinstance(control, Sensed) else None}
+    ``run_info``; [] when it applied none), the sensing report (None without sensing), and with
+    ``disturbances.model`` the engine's model (its robot's mass in kg, Pinocchio's sum, and the friction)."""
+    out = {"pushes": extra.pop("pushes", []), "terrain": extra.pop("terrain", []),
+           "sensing": control.report() if isinstance(control, Sensed) else None}
+    model = None if scenario is None or scenario.disturbances is None else scenario.disturbances.model
+    if model is not None:
+        hm = getattr(engine, "hm", None)
+        out["model"] = {**model.describe(),
+                        "engine_mass_kg": None if hm is None else float(sum(i.mass for i in hm.model.inertias))}
+    return out
 
 
-__all__ = ["REAL_GROUND_ENGINES", "Sensed", "check_engine", "control_period", "sensed", "summary_entry"]
+__all__ = ["REAL_GROUND_ENGINES", "Sensed", "Unsolved", "check_engine", "control_period", "engine_world", "sensed",
+           "summary_entry"]

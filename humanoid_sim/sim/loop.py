@@ -241,7 +241,7 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
     extra.update(getattr(controller, "run_info", lambda: {})())
     extra.update(getattr(engine, "run_info", lambda: {})())
     if scenario.disturbances is not None:
-        extra["disturbances"] = summary_entry(extra, seen)
+        extra["disturbances"] = summary_entry(extra, seen, scenario, engine)
     names = [p.name for p in traj.phases]
     if hold is not None:
         names[0] = hold.value

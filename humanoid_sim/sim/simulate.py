@@ -20,6 +20,8 @@ from collections.abc import Callable
 import numpy as np
 
 from humanoid_sim.controllers.thesis.controller import ThesisController
+from humanoid_sim.dynamics.contact import ContactDynamics
+from humanoid_sim.dynamics.welds import WeldModel
 from humanoid_sim.engines import make_engine
 from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
 from humanoid_sim.errors import InputError
@@ -32,7 +34,7 @@ from humanoid_sim.references.zmp.zmp_walk import initial_state, make_trajectory
 from humanoid_sim.robot.model import HumanoidModel
 from humanoid_sim.robot.phases import Phase
 from humanoid_sim.scenario.schema import Scenario
-from humanoid_sim.sim.disturbances import check_engine
+from humanoid_sim.sim.disturbances import check_engine, engine_world
 from humanoid_sim.sim.drive import Drive, with_motors
 from humanoid_sim.sim.loop import SimResult, run
 
@@ -118,10 +120,14 @@ class Simulator:
                 controller = BalanceController(scenario.balance, compiled=compiled is not False)  # --no-kernel
             else:
                 controller = ThesisController(compiled=compiled if engine in ("pinocchio", "mujoco") else False)
-        self.engine = make_engine(engine, hm, scenario, self.traj, compiled=compiled,
+        hm_engine, sc_engine = engine_world(hm, scenario)   # the engine's own robot and ground (disturbances.model)
+        self.engine = make_engine(engine, hm_engine, sc_engine, self.traj, compiled=compiled,
                                   **user_engine_options(engine, controller))
         self.controller = controller
-        controller.setup(ControlContext(hm, scenario, self.traj, self.q0, self.engine.name, self.engine.constraints,
+        constraints = self.engine.constraints
+        if hm_engine is not hm and isinstance(constraints, WeldModel):   # the controller solves on its own model
+            constraints = WeldModel(ContactDynamics(hm.model))
+        controller.setup(ControlContext(hm, scenario, self.traj, self.q0, self.engine.name, constraints,
                                         settings=_settings_for(controller, scenario)))
 
     # the thesis controller's and the weld engine's parts, for tests and tools

@@ -117,7 +117,7 @@ BAD = [
     ({"sensing": {"seed": 1.5}}, "disturbances.sensing.seed: expected an integer >= 0, got 1.5"),
     ({"sensing": {"delay_s": "20ms"}}, "disturbances.sensing.delay_s: expected a delay in s in [0, 1], got '20ms'"),
     ({"sensing": {"joint_noise": 0.1}}, "disturbances.sensing.joint_noise: unknown key"),
-    ({"model": {"payload_kg": 5}}, "disturbances.model: unknown key"),
+    ({"model": {"payload_kg": 5}}, "disturbances.model.payload_kg: unknown key; did you mean 'payload'"),
     ([1, 2], "disturbances: expected a mapping of keys to values, got list"),
 ]
 
