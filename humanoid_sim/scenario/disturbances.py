@@ -24,6 +24,7 @@ Without the section every walk is what it was.  With it::
         payload: {mass_kg: 20, body: upper_trunk}   # a mass the controller does not know of
         mass_scale: {all: 1.25}        # every mass (and inertia) 25 % above what the controller assumes
         friction: 0.5                  # the engine's ground (MuJoCo); the controller keeps contact's
+      incline: {angle_deg: 3, direction: down}   # the whole ground inclined (every engine)
 
 Pushes:
 
@@ -70,6 +71,12 @@ Model (every engine; :class:`humanoid_sim.sim.simulate.Simulator`): the engine r
 (:mod:`humanoid_sim.robot.variant`) whose masses are the scenario robot's times ``mass_scale`` and which carries
 ``payload`` (not with a ``robot.payload`` too), on ground of ``friction``; the controller, the plan and the contact
 audit keep the scenario's robot and friction.  Masses only: the kinematics, and so the start posture, are shared.
+
+Incline: the whole ground inclined by ``angle_deg`` (in (0, 15]) ``up``, ``down`` or ``sideways`` (rising toward
+the walk's left) along the walk's heading (the yaw of the right toe body at the start, ``path.foot_R0``), the
+robot standing on it from the start.  The engine's gravity is turned by the angle toward the downhill direction
+(ground and gravity in the engine's frame: the same physics as an inclined ground, and the ground plane stays
+z = 0 for the contact code and the audit); the controller's model keeps the vertical gravity, so it does not know.
 """
 
 from __future__ import annotations
@@ -84,7 +91,8 @@ from humanoid_sim.robot.variant import Payload
 from humanoid_sim.scenario.fields import Num, ScenarioError, check_keys, mapping_of, number, show, type_hint, vector
 from humanoid_sim.scenario.robot import parse_mass_scale, parse_payload
 
-KEYS = ("pushes", "terrain", "sensing", "model")
+KEYS = ("pushes", "terrain", "sensing", "model", "incline")
+INCLINE_DIRECTIONS = ("up", "down", "sideways")
 MODEL_KEYS = ("payload", "mass_scale", "friction")
 PUSH_KEYS = ("body", "force_N", "impulse_Ns", "direction", "direction_deg", "frame", "start", "duration_s")
 FRAMES = ("heading", "world")
@@ -251,6 +259,24 @@ class EngineModel:
 
 
 @dataclass(frozen=True)
+class Incline:
+    """The whole ground inclined by ``angle_deg`` (deg) ``direction`` (``up``, ``down`` or ``sideways``: rising
+    toward the walk's left) relative to the walk's heading."""
+
+    angle_deg: float
+    direction: str
+
+    def gravity(self, g: float, heading: float) -> np.ndarray:
+        """Gravity (3,) in the world frame whose ground plane z = 0 then stands for the incline, m/s^2: g turned by
+        the angle toward the downhill direction (the walk's heading ``heading`` in rad: ``down`` = forward)."""
+        fwd = np.array([math.cos(heading), math.sin(heading), 0.0])
+        left = np.array([-fwd[1], fwd[0], 0.0])
+        downhill = {"down": fwd, "up": -fwd, "sideways": -left}[self.direction]
+        a = math.radians(self.angle_deg)
+        return g * (math.sin(a) * downhill - math.cos(a) * np.array([0.0, 0.0, 1.0]))
+
+
+@dataclass(frozen=True)
 class Disturbances:
     """The validated ``disturbances`` section (module docstring)."""
 
@@ -259,6 +285,7 @@ class Disturbances:
     sensing: Sensing | None = None
     source: str = field(default="<dict>", compare=False)
     model: EngineModel | None = None
+    incline: Incline | None = None
 
     def describe_sensing(self) -> dict[str, Any] | None:
         """The sensing settings for summary.json, or None."""
@@ -452,7 +479,22 @@ def parse_disturbances(src: str, raw: Any) -> Disturbances | None:
                     for i, p in enumerate(_list(src, "disturbances.terrain", d.get("terrain"))))
     sensing = None if d.get("sensing") is None else _sensing(src, d["sensing"])
     model = None if d.get("model") is None else _model(src, d["model"])
-    return Disturbances(pushes, terrain, sensing, src, model)
+    incline = None if d.get("incline") is None else _incline(src, d["incline"])
+    return Disturbances(pushes, terrain, sensing, src, model, incline)
+
+
+def _incline(src: str, raw: Any) -> Incline:
+    where = "disturbances.incline"
+    d = mapping_of(src, where, raw)
+    check_keys(src, where, d, ("angle_deg", "direction"))
+    if "angle_deg" not in d:
+        raise ScenarioError(f"{src}: {where}.angle_deg: missing; expected an angle in deg in (0, 15]")
+    angle = number(src, f"{where}.angle_deg", d["angle_deg"], Num("an angle in deg", 0.0, 15.0, lo_open=True))
+    direction = d.get("direction", "down")
+    if direction not in INCLINE_DIRECTIONS:
+        raise ScenarioError(f"{src}: {where}.direction = {show(direction)}: expected one of "
+                            f"{', '.join(INCLINE_DIRECTIONS)}")
+    return Incline(angle, str(direction))
 
 
 def _model(src: str, raw: Any) -> EngineModel:
@@ -466,5 +508,5 @@ def _model(src: str, raw: Any) -> EngineModel:
     return EngineModel(payload, masses, friction)
 
 
-__all__ = ["DEFAULT_BODY", "Disturbances", "EngineModel", "KEYS", "Push", "PushStart", "Sensing", "TerrainPiece",
-           "parse_disturbances", "resolve_start", "slope_normal"]
+__all__ = ["DEFAULT_BODY", "Disturbances", "EngineModel", "Incline", "KEYS", "Push", "PushStart", "Sensing",
+           "TerrainPiece", "parse_disturbances", "resolve_start", "slope_normal"]

@@ -23,12 +23,14 @@ anything is written).
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
 from humanoid_sim.errors import InputError
 from humanoid_sim.interfaces.controller import Command, Observation
@@ -45,6 +47,9 @@ def check_engine(scenario: Any, engine: str) -> None:
         InputError: naming the section and the engines that take it.
     """
     dist = scenario.disturbances
+    if dist is not None and dist.incline is not None and engine == "thesis":
+        raise InputError("disturbances.incline: the thesis engine's equations (the NumPy oracle) take gravity from "
+                         "the body table; expected --engine pinocchio or mujoco for an inclined ground")
     if dist is None or engine in REAL_GROUND_ENGINES:
         return
     for key, what in (("terrain", "terrain boxes"), ("pushes", "pushes")):
@@ -139,7 +144,7 @@ def sensed(scenario: Any, control: Callable[[Observation], Command], engine: Any
     """``control`` seen through the scenario's sensing (:class:`Sensed`; :class:`Unsolved` when only the engine's
     model differs), or ``control`` itself without either."""
     dist = scenario.disturbances
-    if dist is None or (dist.sensing is None and dist.model is None):
+    if dist is None or (dist.sensing is None and dist.model is None and dist.incline is None):
         return control
     if dist.sensing is None:
         return Unsolved(control)
@@ -155,8 +160,10 @@ def engine_world(hm: Any, scenario: Any) -> tuple[Any, Any]:
         InputError: a payload both in ``robot`` and in ``disturbances.model``.
     """
     dist = scenario.disturbances
-    if dist is None or dist.model is None:
+    if dist is None or (dist.model is None and dist.incline is None):
         return hm, scenario
+    if dist.model is None:
+        return _inclined(hm, scenario), scenario
     from humanoid_sim.robot.variant import RobotVariant, variant_model
     from humanoid_sim.sim.drive import with_motors
 
@@ -176,7 +183,19 @@ def engine_world(hm: Any, scenario: Any) -> tuple[Any, Any]:
     sc = scenario
     if model.friction is not None:
         sc = replace(scenario, contact=replace(scenario.contact, friction_coefficient=model.friction))
-    return hm_engine, sc
+    return _inclined(hm_engine, scenario), sc
+
+
+def _inclined(hm: Any, scenario: Any) -> Any:
+    """``hm``, or with ``disturbances.incline`` a copy whose gravity is turned toward the downhill direction."""
+    incline = scenario.disturbances.incline
+    if incline is None:
+        return hm
+    R = np.asarray(scenario.path.foot_R0, dtype=float)
+    heading = math.atan2(R[1, 0], R[0, 0])   # the right toe body's x axis points forward at the start
+    model = hm.model.copy()
+    model.gravity = pin.Motion(np.concatenate([incline.gravity(float(hm.spec.gravity), heading), np.zeros(3)]))
+    return replace(hm, model=model, data=model.createData())
 
 
 def summary_entry(extra: dict[str, Any], control: Any, scenario: Any = None, engine: Any = None) -> dict[str, Any]:
@@ -185,7 +204,12 @@ def summary_entry(extra: dict[str, Any], control: Any, scenario: Any = None, eng
     ``disturbances.model`` the engine's model (its robot's mass in kg, Pinocchio's sum, and the friction)."""
     out = {"pushes": extra.pop("pushes", []), "terrain": extra.pop("terrain", []),
            "sensing": control.report() if isinstance(control, Sensed) else None}
-    model = None if scenario is None or scenario.disturbances is None else scenario.disturbances.model
+    dist = None if scenario is None else scenario.disturbances
+    model = None if dist is None else dist.model
+    if dist is not None and dist.incline is not None:
+        hm = getattr(engine, "hm", None)
+        out["incline"] = {"angle_deg": dist.incline.angle_deg, "direction": dist.incline.direction,
+                          "gravity_mps2": None if hm is None else hm.model.gravity.linear.tolist()}
     if model is not None:
         hm = getattr(engine, "hm", None)
         out["model"] = {**model.describe(),

@@ -232,7 +232,7 @@ def build_model(hm: HumanoidModel, settings: MujocoSettings | None = None,
 
     opt = spec.option
     opt.timestep = settings.timestep
-    opt.gravity = [0.0, 0.0, -float(hm.spec.gravity)]
+    opt.gravity = [float(x) for x in hm.model.gravity.linear]   # (0, 0, -g), or turned for an incline
     opt.cone = CONES[settings.cone]
     opt.impratio = settings.impratio
     opt.integrator = INTEGRATORS[settings.integrator]
