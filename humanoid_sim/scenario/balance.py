@@ -13,6 +13,11 @@ from typing import Any
 from humanoid_sim.errors import InputError
 from humanoid_sim.scenario.fields import ScenarioError
 
+FEEDBACKS = ("dcm", "pd")
+"""The values of ``BalanceSettings.feedback``."""
+_CHOICES = ("feedback",)
+_FLAGS = ("time_shift", "lazy_torque_limits", "step_adjustment")
+
 
 @dataclass(frozen=True)
 class BalanceSettings:
@@ -46,6 +51,18 @@ class BalanceSettings:
         time_shift: follow the plan on a clock delayed by the touchdowns' lateness (true) or on the nominal clock.
         lazy_torque_limits: add the actuator-limit rows to the QP only when its optimum without them breaks a limit
             (the same optimum, fewer rows).
+        feedback: the horizontal balance feedback: ``dcm`` (capture-point feedback on the whole-body CoM, toward the
+            plan's DCM, with step adjustment when ``step_adjustment``) or ``pd`` (the Body-17 CoM's PD to the hip
+            plan, ``hip_omega``).  A trajectory without a whole-body CoM plan (chapter 3's) uses ``pd``.
+        dcm_gain: the DCM error's decay rate k of the ``dcm`` feedback, 1/s.
+        step_adjustment: with ``feedback: dcm``, move the swing foot's landing by the DCM error predicted at
+            touchdown (humanoid_sim.controllers.balance.steps).
+        step_deadband_m: the predicted DCM error at touchdown that leaves the foothold where planned, m.
+        step_forward_m: the largest forward move of a foothold (heading frame), m.
+        step_backward_m: the largest backward move of a foothold, m.
+        step_outward_m: the largest move of a foothold away from the stance foot, m.
+        step_min_width_m: the smallest lateral distance between the toe points of the landing and the stance foot
+            (no crossing step), m.
     """
 
     hip_omega: float = 12.0
@@ -74,16 +91,28 @@ class BalanceSettings:
     w_unload: float = 0.001
     time_shift: bool = True
     lazy_torque_limits: bool = True
+    feedback: str = "dcm"
+    dcm_gain: float = 20.0
+    step_adjustment: bool = True
+    step_deadband_m: float = 0.02
+    step_forward_m: float = 0.2
+    step_backward_m: float = 0.15
+    step_outward_m: float = 0.15
+    step_min_width_m: float = 0.12
 
     def __post_init__(self) -> None:
+        if self.feedback not in FEEDBACKS:
+            raise InputError(f"BalanceSettings.feedback = {self.feedback!r}: expected one of {', '.join(FEEDBACKS)}")
         for f in fields(self):
             x = getattr(self, f.name)
-            if f.name in ("time_shift", "lazy_torque_limits"):
+            if f.name in _CHOICES:
+                continue
+            if f.name in _FLAGS:
                 if not isinstance(x, bool):
                     raise InputError(f"BalanceSettings.{f.name} = {x!r}: expected true or false")
                 continue
             ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-            nonneg = f.name.startswith(("w_", "cop_")) or f.name in ("landing_depth_m", "heel_lift_rad")
+            nonneg = f.name.startswith(("w_", "cop_", "step_")) or f.name in ("landing_depth_m", "heel_lift_rad")
             lo_ok = x >= 0 if nonneg else x > 0
             if not (ok and lo_ok) or (f.name in ("friction_safety", "torque_margin") and x > 1.0):
                 raise InputError(f"BalanceSettings.{f.name} = {x!r}: expected a finite number "
@@ -113,13 +142,12 @@ def parse_balance(src: str, raw: object) -> BalanceSettings:
             close = difflib.get_close_matches(str(k), names, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise ScenarioError(f"{src}: balance.{k}: unknown setting{hint}; expected one of {', '.join(names)}")
-    values: dict[str, Any] = {k: (float(v) if isinstance(v, int) and not isinstance(v, bool) and k not in ("time_shift",
-                                                                                             "lazy_torque_limits")
-                  else v) for k, v in raw.items()}
+    values: dict[str, Any] = {k: (float(v) if isinstance(v, int) and not isinstance(v, bool) and k not in _FLAGS
+                                  else v) for k, v in raw.items()}
     try:
         return BalanceSettings(**values)
     except InputError as exc:
         raise ScenarioError(f"{src}: balance.{str(exc).removeprefix('BalanceSettings.')}") from None
 
 
-__all__ = ["BalanceSettings", "parse_balance"]
+__all__ = ["FEEDBACKS", "BalanceSettings", "parse_balance"]

@@ -84,6 +84,7 @@ from humanoid_sim import kernel as _kernel
 from humanoid_sim.controllers.balance.compiled import balance_finish, balance_stage
 from humanoid_sim.controllers.balance.qp import BalanceTables, BoxWrenches, pd, qp_numpy, rot_y
 from humanoid_sim.controllers.balance.stage import FOOT_OF_MAIN, CompiledStage
+from humanoid_sim.controllers.balance.steps import dcm_feedback
 from humanoid_sim.controllers.balance.targets import T_HEEL_ANGLE, TARGET_SIZE, Targets, pack_hip, pack_swing
 from humanoid_sim.interfaces.controller import Command, ControlContext, ControllerError, Observation
 from humanoid_sim.kernel.records import State
@@ -187,6 +188,7 @@ class BalanceController:
         self._gains = np.array([*pd(s.hip_omega), s.w_hip, *pd(s.trunk_omega), s.w_trunk, *pd(s.swing_omega),
                                 s.w_swing, *pd(s.posture_omega)], dtype=float)
         self._tables: dict[bool, BalanceTables] = {}     # the QP's constant inputs; by double support
+        self.dcm = dcm_feedback(s, self.model, self.fid["Pc_17"], self.traj)   # None: the hip PD
 
     def _reference_time(self, obs: Observation) -> float:
         """The time at which the references are read, s: the plan's clock ``obs.t - obs.plan_delay`` (``time_shift``
@@ -199,8 +201,11 @@ class BalanceController:
 
     def run_info(self) -> dict:
         """For the run's summary: calls, and calls whose contact constraints had to be relaxed."""
-        return {"balance_calls": self.calls, "balance_relaxed_cop": self.relaxed_cop,
-                "balance_relaxed_all": self.relaxed_all}
+        out = {"balance_calls": self.calls, "balance_relaxed_cop": self.relaxed_cop,
+               "balance_relaxed_all": self.relaxed_all}
+        if self.dcm is not None and self.dcm.steps is not None:
+            out["balance_steps_adjusted"] = self.dcm.steps.adjusted
+        return out
 
     # ------------------------------------------------------------------ one call
     def __call__(self, obs: Observation) -> Command:
@@ -295,6 +300,8 @@ class BalanceController:
         else:
             p_ref, v6_ref, R_ref = traj.hip_reference(k, t)
             tg = Targets(t=t, hip=(p_ref, v6_ref, R_ref, traj.hip_acceleration(k, t)))
+        if self.dcm is not None:       # the hip task realises the DCM law (dcm.py) instead of its own PD
+            tg.hip = self.dcm.hip_targets(tg.hip, traj.com_targets(k, t), k, t, obs.q, obs.v)
         info = traj.phases[k]
         if info.swing_foot is not None:
             foot = info.swing_foot
@@ -327,6 +334,8 @@ class BalanceController:
                 v6[2] -= s.landing_search_mps
                 a_ff = np.zeros(6)
             tg.swing = (foot, pt, v6, Rr, a_ff, (t - info.t_start) / s.heel_return_time_s)
+            if self.dcm is not None and self.dcm.steps is not None:    # a moved foothold (steps.py)
+                tg.swing = self.dcm.steps.swing_target(k, tg.swing)
         elif phase.is_double_support:
             # the trailing foot, held by its toe: lift its heel (toe-off) so that only the toe part touches, as the
             # contact model (toe weld) assumes; on real ground a flat trailing foot would carry load on its heel

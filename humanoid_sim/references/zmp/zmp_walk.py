@@ -77,12 +77,18 @@ def hermite_xy(t: float, t0: float, T: float, xy: np.ndarray, vxy: np.ndarray
 @dataclass(frozen=True)
 class HipPlan:
     """Body-17 CoM plan on a uniform grid: times t (n,) from 0 (global, s), xy (n, 2) m, vxy (n, 2) m/s, and what
-    the planner reports (``info``: ZMP tracking, multibody error, timings)."""
+    the planner reports (``info``: ZMP tracking, multibody error, timings).  On the same grid, when the planner
+    provides them: the whole-body CoM plan ``com_xy`` (n, 2) m, ``com_vxy`` (n, 2) m/s and the ZMP reference
+    ``zmp_xy`` (n, 2) m (the DCM feedback's reference); ``com_z`` the table height, m."""
 
     t: np.ndarray
     xy: np.ndarray
     vxy: np.ndarray
     info: dict
+    com_xy: np.ndarray | None = None
+    com_vxy: np.ndarray | None = None
+    zmp_xy: np.ndarray | None = None
+    com_z: float | None = None
 
     @property
     def T(self) -> float:
@@ -121,6 +127,8 @@ class ZmpPreviewTrajectory:
         s0 = inner.sample(0, 0.0)
         self._feet0 = {"R": (s0.toe_R_p, s0.foot_R_R, s0.foot_R_yaw), "L": (s0.toe_L_p, s0.foot_L_R, s0.foot_L_yaw)}
         self.plan: HipPlan | None = None
+        self.com_plan: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
+        """(com_xy, com_vxy, zmp_xy, com_z) of the plan when it has them (:meth:`com_targets`), else None."""
 
     # ------------------------------------------------------------------------------------------------ plan
     def set_hip_plan(self, plan: HipPlan) -> None:
@@ -132,6 +140,11 @@ class ZmpPreviewTrajectory:
         self._hip_memo: tuple = (math.nan,)
         self._xy = np.ascontiguousarray(plan.xy, dtype=float)
         self._vxy = np.ascontiguousarray(plan.vxy, dtype=float)
+        self.com_plan = None
+        if plan.com_xy is not None and plan.com_vxy is not None and plan.zmp_xy is not None and plan.com_z:
+            self.com_plan = (np.ascontiguousarray(plan.com_xy, dtype=float),
+                             np.ascontiguousarray(plan.com_vxy, dtype=float),
+                             np.ascontiguousarray(plan.zmp_xy, dtype=float), float(plan.com_z))
 
     def _hip(self, tg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Planned Body-17 CoM position, velocity, acceleration (3,) at global time tg (s)."""
@@ -223,6 +236,21 @@ class ZmpPreviewTrajectory:
         return (p, np.array((v[0], v[1], 0.0, 0.0, 0.0, yawd)), _rz(yaw),
                 np.array((a[0], a[1], 0.0, 0.0, 0.0, yawdd)))
 
+    def com_targets(self, phase: int, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The whole-body CoM plan at global t clamped to ``phase`` (as :meth:`hip_targets`): horizontal position
+        (2,) m, velocity (2,) m/s, acceleration (2,) m/s^2 (cubic Hermite of the grid) and the ZMP reference (2,) m
+        (linear between grid points), world frame; None when the plan has no whole-body CoM plan."""
+        if self.com_plan is None or self.plan is None:
+            return None
+        tc = self._clamp(self._check(phase), t)
+        xy, vxy, zmp, _ = self.com_plan
+        t0, T = float(self.plan.t[0]), self.plan.T
+        p, v, a = hermite_xy(tc, t0, T, xy, vxy)
+        u = min(max((tc - t0) / T, 0.0), len(zmp) - 1.0)
+        i = min(int(u), len(zmp) - 2)
+        f = u - i
+        return np.array(p), np.array(v), np.array(a), zmp[i] * (1.0 - f) + zmp[i + 1] * f
+
     def toe_velocity(self, phase: int, t: float, foot: str) -> np.ndarray:
         """:meth:`toe_reference`'s velocity (6,) alone; the same numbers."""
         k = self._check(phase)
@@ -306,7 +334,7 @@ def plan_hip(hm: Any, traj: ZmpPreviewTrajectory, q0: np.ndarray, horizon_s: flo
 
     from humanoid_sim.robot.sole import SoleGeometry
 
-    from .multibody import correct_hip, whole_body_com
+    from .multibody import correct_hip, path_derivatives, whole_body_com
     from .posture import WalkPosture, thesis_free_toes
     from .preview import CartTablePreview
     from .zmp_reference import intervals_from_trajectory, sample
@@ -346,7 +374,9 @@ def plan_hip(hm: Any, traj: ZmpPreviewTrajectory, q0: np.ndarray, horizon_s: flo
             "multibody_zmp_error_ssp_rms_m": float(np.sqrt(np.mean(mb[ssp] ** 2))) if ssp.any() else 0.0,
             "multibody_zmp_error_ssp_max_m": float(mb[ssp].max()) if ssp.any() else 0.0,
             "plan_wall_time_s": time.perf_counter() - wall0}
-    return HipPlan(t=times, xy=res.hip_xy, vxy=res.hip_v, info=info)
+    com_v, _ = path_derivatives(res.com_plan, T)
+    return HipPlan(t=times, xy=res.hip_xy, vxy=res.hip_v, info=info, com_xy=res.com_plan, com_vxy=com_v,
+                   zmp_xy=np.asarray(ref, dtype=float), com_z=float(com0[2]))
 
 
 def initial_state(hm: Any, scenario: Any) -> np.ndarray:

@@ -1,0 +1,156 @@
+"""Online step adjustment: the next foothold moved to where the DCM says the robot can stop.
+
+In single support on a fixed CoP p the DCM diverges as xi(t) = p + (xi(t_now) - p) e^{omega (t - t_now)}, so a DCM
+error e (measured minus plan) grows to e e^{omega T_r} by the planned touchdown, T_r ahead.  Like IHMC's ICP
+planner (the next foothold at the predicted capture point plus the nominal offset), the swing foot's landing
+moves by that predicted error, less a dead band the ankles absorb (so that the nominal walk, whose DCM tracks its
+plan to a few mm, keeps its footholds), clamped in the heading frame (x forward, y left, the trunk's planned yaw)
+to a reach box (``step_forward_m`` ahead, ``step_backward_m`` back, ``step_outward_m`` away from the stance foot)
+and to a collision bound (the feet's toe points at least ``step_min_width_m`` apart sideways: no crossing step).
+The offset is frozen after ``freeze`` of the swing (a target that jumps just before touchdown lands the foot
+tilted), moves at most ``rate`` m/s, and enters the swing foot's target ramped with the swing's progress.
+
+A moved foothold moves the rest of the walk with it: the plan's ZMP is shifted by the offset from the middle of the
+double support that follows the touchdown on, the DCM reference follows by the LIPM's backward recursion
+(:class:`.dcm.ZmpShift`), and every later swing lands the offsets so far from its planned foothold (a robot pushed
+forward walks on ahead of its plan instead of being pulled back to it; the path's shape is kept).
+SI units, world frame.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from humanoid_sim.controllers.balance.dcm import DcmFeedback, ZmpShift, ZmpWindow
+
+_NO_END = 1e9
+"""A window's end, s: a moved foothold moves the rest of the walk with it."""
+
+
+def smoothstep(x: float) -> float:
+    """3 x^2 - 2 x^3 on [0, 1], clamped."""
+    x = min(max(x, 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _shrink(x: float, band: float) -> float:
+    """x moved toward zero by ``band`` (>= 0), stopping at zero."""
+    return x - band if x > band else x + band if x < -band else 0.0
+
+
+def predicted_offset(err: np.ndarray, omega: float, t_remaining: float, deadband: float) -> np.ndarray:
+    """The foothold offset (2,) m for a DCM error ``err`` (2,) m, in any horizontal frame: the error grown over
+    ``t_remaining`` s by e^{omega T}, each component shrunk toward zero by ``deadband`` m."""
+    g = math.exp(omega * max(t_remaining, 0.0))
+    return np.array([_shrink(float(err[0]) * g, deadband), _shrink(float(err[1]) * g, deadband)])
+
+
+def clamp_offset(d_heading: np.ndarray, outward_sign: float, width: float, s) -> np.ndarray:
+    """The heading-frame offset (forward, left) (2,) m clamped to the reach box and the collision bound.
+
+    Args:
+        d_heading: the wanted offset, m.
+        outward_sign: +1 when the swing foot is the left one (away from the stance foot is +y), -1 the right.
+        width: the nominal landing's lateral distance from the stance foot (toe points, heading frame), m.
+        s: the :class:`BalanceSettings`.
+    """
+    fwd = min(max(float(d_heading[0]), -s.step_backward_m), s.step_forward_m)
+    out = outward_sign * float(d_heading[1])
+    out = min(max(out, min(s.step_min_width_m - width, 0.0)), s.step_outward_m)
+    return np.array([fwd, outward_sign * out])
+
+
+class StepAdjuster:
+    """The step adjustment of the module docstring for one walk (``traj``: the zmp gait's trajectory; ``shift``:
+    the DCM feedback's ZMP shift, which this fills; ``settings``: :class:`BalanceSettings`)."""
+
+    freeze = 0.75
+    """Swing progress after which the offset is frozen (-)."""
+    rate = 1.5
+    """The largest speed of the offset, m/s."""
+
+    def __init__(self, traj, shift: ZmpShift, settings) -> None:
+        self.traj = traj
+        self.shift = shift
+        self.s = settings
+        self.k = -1                       # the single support being adjusted (phase index)
+        self.window: ZmpWindow | None = None
+        self.d = np.zeros(2)              # the applied offset of that single support, world, m
+        self.t_last = 0.0
+        self.ratio = 0.0                  # the swing's progress at the last call (-)
+        self.adjusted = 0                 # single supports whose foothold moved
+        self.total = np.zeros(2)          # the earlier single supports' offsets, world, m
+        self._width_vec = (0.0, 0.0)      # the nominal landing minus the stance toe point, world, m
+
+    def _start(self, k: int, t: float) -> None:
+        ph = self.traj.phases
+        n = len(ph)
+        t0 = ph[k].t_end + (0.5 * ph[k + 1].duration if k + 1 < n else 0.0)
+        self.k, self.d, self.t_last = k, np.zeros(2), t
+        self.total = sum((w.d for w in self.shift.windows), np.zeros(2))
+        self.window = ZmpWindow(t0, _NO_END, self.d)
+        self.shift.windows.append(self.window)
+        # the nominal landing's and the stance foot's toe points, world (the stance foot stays during the swing)
+        swing = ph[k].swing_foot
+        landing = np.asarray(self.traj.phase_targets(k).swing_toe_end, dtype=float)[:2]
+        stance = np.asarray(self.traj.toe_reference(k, t, "R" if swing == "L" else "L")[0], dtype=float)[:2]
+        self._width_vec = (float(landing[0] - stance[0]), float(landing[1] - stance[1]))
+
+    def update(self, k: int, t: float, xi_err: np.ndarray, omega: float, R_heading: np.ndarray) -> None:
+        """One call in single support k at plan time t: the DCM error ``xi_err`` (2,) m against the plan shifted by
+        the earlier moved footholds; ``R_heading`` the trunk's planned orientation (its x axis forward)."""
+        info = self.traj.phases[k]
+        if info.swing_foot is None:
+            return
+        if self.k != k:
+            self._start(k, t)
+            moved = False
+        else:
+            moved = self.d[0] != 0.0 or self.d[1] != 0.0
+        u = (t - info.t_start) / info.duration
+        self.ratio = u
+        dt, self.t_last = max(t - self.t_last, 0.0), t
+        if u > self.freeze:
+            return
+        # scalar arithmetic: this runs at every call of a single support (a 2-vector numpy operation costs ~1 us)
+        fx, fy = float(R_heading[0, 0]), float(R_heading[1, 0])
+        nf = max(math.hypot(fx, fy), 1e-9)
+        fx, fy = fx / nf, fy / nf                                   # forward; left is (-fy, fx)
+        ex, ey = float(xi_err[0]), float(xi_err[1])
+        want = predicted_offset((fx * ex + fy * ey, fx * ey - fy * ex), omega, info.t_end - t,
+                                self.s.step_deadband_m)
+        width = abs(fx * self._width_vec[1] - fy * self._width_vec[0])
+        hf, hl = clamp_offset(want, 1.0 if info.swing_foot == "L" else -1.0, width, self.s)
+        sx, sy = fx * hf - fy * hl - self.d[0], fy * hf + fx * hl - self.d[1]
+        n = math.hypot(sx, sy)
+        if n > self.rate * dt:
+            sx, sy = sx * self.rate * dt / n, sy * self.rate * dt / n
+        self.d[0] += sx                   # in place: the window holds it
+        self.d[1] += sy
+        if not moved and (self.d[0] != 0.0 or self.d[1] != 0.0):
+            self.adjusted += 1
+
+    def swing_target(self, k: int, swing: tuple) -> tuple:
+        """Single support k's swing targets (``Targets.swing``) with the toe point moved by the offsets (the earlier
+        ones and this one), ramped in over the swing's progress (smoothstep to full at ``freeze``)."""
+        if self.k != k or not (np.any(self.d) or np.any(self.total)):
+            return swing
+        foot, pt, v6, Rr, a_ff, xr = swing
+        pt = pt.copy()
+        pt[:2] += (self.total + self.d) * smoothstep(self.ratio / self.freeze)
+        return foot, pt, v6, Rr, a_ff, xr
+
+
+def dcm_feedback(settings, model, hip_frame: int, traj) -> DcmFeedback | None:
+    """The balance controller's :class:`.dcm.DcmFeedback` (with a :class:`StepAdjuster` when
+    ``settings.step_adjustment``) for ``settings.feedback == "dcm"`` and a trajectory with a whole-body CoM plan
+    (``traj.com_plan``), else None (the hip PD)."""
+    com_plan = getattr(traj, "com_plan", None)
+    if settings.feedback != "dcm" or com_plan is None:
+        return None
+    fb = DcmFeedback(model, hip_frame, com_plan[3], settings.dcm_gain)
+    if settings.step_adjustment:
+        fb.steps = StepAdjuster(traj, fb.shift, settings)
+    return fb
