@@ -91,9 +91,9 @@ def _main(args: argparse.Namespace) -> int:
 
     probe = [_Walk(study.candidate_doc(study.midpoint(), "probe"))]
     if args.scheduler is None and study.engine in ("pinocchio", "mujoco"):
-        _build_kernel(probe)
+        _build_kernel(probe, PROG)
     if args.scheduler is None and study.engine == "mujoco":
-        _build_mujoco(probe[0].doc)
+        _build_mujoco(probe[0].doc, PROG)
     from humanoid_sim.sweep import runner
     from humanoid_sim.sweep.optimize import optimise, read_candidates, write_best
     from humanoid_sim.sweep.pareto import plot_pareto
@@ -106,7 +106,7 @@ def _main(args: argparse.Namespace) -> int:
     def on_row(row: dict) -> None:
         if args.quiet:
             return
-        objs = ", ".join(f"{k.removeprefix('objective:')} = {v:.4g}" if isinstance(v, float) else f"{k} = -"
+        objs = ", ".join(f"{k.removeprefix('objective:')} = " + (f"{v:.4g}" if isinstance(v, float) else "-")
                          for k, v in row.items() if k.startswith("objective:"))
         what = "baseline" if row["trial"] < 0 else f"trial {row['trial']}"
         verdict = "feasible" if row["meets_constraints"] else ("infeasible: " + (

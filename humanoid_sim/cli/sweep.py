@@ -154,7 +154,7 @@ def _shape(spec) -> str:
     return " x ".join(parts)
 
 
-def _build_kernel(to_run) -> None:
+def _build_kernel(to_run, prog: str = PROG) -> None:
     """Fill numba's cache of the compiled parts the walks call (the thesis controller's stages, the balance
     controller's QP path, or both) once, here, before the local workers start: otherwise each worker compiles them
     itself, all at once.  A failed build is reported and left to the workers."""
@@ -175,7 +175,7 @@ def _build_kernel(to_run) -> None:
     missing = {parts: doc for parts, doc in needed.items() if not build.cache_ready(parts)}
     if not missing:
         return
-    print(f"{PROG}: compiling the simulation kernel (first run after an install or an edit of "
+    print(f"{prog}: compiling the simulation kernel (first run after an install or an edit of "
           "a compiled module: ~20 s, cached for later runs)", file=sys.stderr)
     with tempfile.TemporaryDirectory(prefix="humanoid_sweep_build_") as tmp:
         for i, (parts, doc) in enumerate(missing.items()):
@@ -184,10 +184,10 @@ def _build_kernel(to_run) -> None:
             try:
                 build.build(path, parts)
             except build.KernelBuildError as exc:
-                print(f"{PROG}: warning: {exc}; the workers compile it instead", file=sys.stderr)
+                print(f"{prog}: warning: {exc}; the workers compile it instead", file=sys.stderr)
 
 
-def _build_mujoco(doc: dict) -> None:
+def _build_mujoco(doc: dict, prog: str = PROG) -> None:
     """Fill numba's cache of the MuJoCo engine's compiled ground reads once, here, by a short walk of one of the
     sweep's scenarios (:func:`humanoid_sim.sim.builds.build_mujoco_reads`), before the local workers start."""
     from humanoid_sim.engines.mujoco import compiled
@@ -198,7 +198,7 @@ def _build_mujoco(doc: dict) -> None:
     from humanoid_sim.robot.model import load_model
     from humanoid_sim.scenario.schema import parse_scenario
 
-    print(f"{PROG}: compiling the MuJoCo engine's ground reads (~5 s, cached for later runs)", file=sys.stderr)
+    print(f"{prog}: compiling the MuJoCo engine's ground reads (~5 s, cached for later runs)", file=sys.stderr)
     build_mujoco_reads(load_model(), parse_scenario(doc, "<sweep walk>"))
 
 
