@@ -298,7 +298,7 @@ def as_scenario(scenario: str | Path | Scenario) -> Scenario:
 
 
 def prepare(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, compiled: bool | None = None,
-            controller: Controller | None = None) -> Simulator:
+            controller: Controller | None = None, planner: Callable[..., Any] | None = None) -> Simulator:
     """The walk's `Simulator`: references planned, engine and controller set up.
 
     Args:
@@ -307,6 +307,8 @@ def prepare(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, co
             ``"thesis"`` (the NumPy transcription of the thesis's equations; slow).
         compiled: use the compiled kernels (None: where numba is installed; False: the NumPy reference path).
         controller: a controller object; None for the scenario's.
+        planner: called as ``planner(hm, scenario, q0)`` instead of planning the references (a cache of the same
+            plan: :func:`humanoid_sim.references.zmp.zmp_walk.make_trajectory`'s result for these arguments).
 
     Raises:
         InputError: a bad scenario or engine name, a controller that cannot be loaded, a walk the planner
@@ -315,7 +317,7 @@ def prepare(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, co
     if engine not in ENGINE_NAMES:
         raise InputError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
     sc = as_scenario(scenario)
-    return Simulator(robot(sc.robot), sc, compiled=compiled, engine=engine, controller=controller)
+    return Simulator(robot(sc.robot), sc, compiled=compiled, engine=engine, controller=controller, planner=planner)
 
 
 def finish(sim: Simulator, result: SimResult) -> Run:
@@ -327,7 +329,8 @@ def finish(sim: Simulator, result: SimResult) -> Run:
 def run_walk(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, until: float | None = None,
              compiled: bool | None = None, controller: Controller | None = None,
              progress: Callable[[float, int], None] | None = None, out: str | Path | None = None,
-             figures: bool | str | Sequence[str] = False, playback: bool = False, verbose: bool = True) -> Run:
+             figures: bool | str | Sequence[str] = False, playback: bool = False, verbose: bool = True,
+             planner: Callable[..., Any] | None = None) -> Run:
     """Simulate one walk and summarise it.
 
     Args:
@@ -345,6 +348,7 @@ def run_walk(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, u
         playback: with ``out``, write ``playback.html``.
         verbose: print a line to stderr before a wait of seconds (numba compiling the kernel when its cache is
             missing, planning a ``zmp_preview`` gait) and the planning time after it.
+        planner: as `prepare`'s.
 
     Returns:
         The `Run`. A walk that fails or falls returns normally: ``run.status`` says how it ended and
@@ -368,11 +372,11 @@ def run_walk(scenario: str | Path | Scenario, engine: Engine = "pinocchio", *, u
             _say("planning the zmp_preview gait (ZMP preview control and its multibody correction: a few seconds per "
                  "10 s of walk)")
         t0 = time.perf_counter()
-        sim = prepare(sc, engine, compiled=compiled, controller=controller)
+        sim = prepare(sc, engine, compiled=compiled, controller=controller, planner=planner)
         if sc.gait.is_zmp:
             _say(f"planned the gait and set up the walk in {time.perf_counter() - t0:.1f} s")
     else:
-        sim = prepare(scenario, engine, compiled=compiled, controller=controller)
+        sim = prepare(scenario, engine, compiled=compiled, controller=controller, planner=planner)
     run = finish(sim, sim.run(t_end=until, progress=progress))
     run.summary["provenance"] = provenance(call)
     if out is not None:

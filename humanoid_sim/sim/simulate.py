@@ -95,7 +95,8 @@ class Simulator:
     """
 
     def __init__(self, hm: HumanoidModel, scenario: Scenario, compiled: bool | None = None,
-                 engine: str = "pinocchio", controller: Controller | None = None) -> None:
+                 engine: str = "pinocchio", controller: Controller | None = None,
+                 planner: Callable[[HumanoidModel, Scenario, np.ndarray], ReferenceTrajectory] | None = None) -> None:
         self.drive: Drive | None = None
         check_engine(scenario, engine)   # pushes and terrain need real ground (sim/disturbances.py)
         if scenario.actuators is not None:   # the motors' rotor inertia in every model, their envelopes on commands
@@ -108,7 +109,8 @@ class Simulator:
         self.sc = scenario
         self.model = hm.model
         self.q0 = initial_state(hm, scenario)
-        self.traj = make_trajectory(hm, scenario, self.q0)
+        # ``planner``: another source of the same plan (a cache of it), called as make_trajectory is
+        self.traj = (make_trajectory if planner is None else planner)(hm, scenario, self.q0)
         if controller is None:
             if scenario.controller_class is not None:
                 from humanoid_sim.controllers.loading import load_controller

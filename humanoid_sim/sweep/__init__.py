@@ -7,5 +7,10 @@
 - :mod:`.checks`: cheap checks before the walks run (is every walk distinct, does every axis change a walk);
 - :mod:`.plots`: the actuator-sizing figure and the completion/feasibility map; :mod:`.labels`: their axis labels
   in physical units;
-- :mod:`.cli`: the ``humanoid-sweep`` command (``scripts/sweep.py``).
+- :mod:`.design_file`, :mod:`.optimize`, :mod:`.pareto`: design searches (``humanoid-optimize``): the design file,
+  the Optuna study over walks on the same cluster, its Pareto figure;
+- :mod:`.push`, :mod:`.push_report`: the push-recovery benchmark (``humanoid-push``): bisections of the largest
+  survived push per direction and instant, its table and polar figure;
+- the commands themselves are in :mod:`humanoid_sim.cli` (``humanoid-sweep``, ``humanoid-optimize``,
+  ``humanoid-push``; ``scripts/sweep.py``, ``scripts/optimize.py``, ``scripts/push_benchmark.py``).
 """

@@ -51,9 +51,10 @@ def torque_rms(T: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(T * T, axis=0))
 
 
-def run_walk(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, Any]:
+def run_walk(doc: dict, engine: str, source: str = "<sweep walk>", planner: Any = None) -> dict[str, Any]:
     """Simulate the scenario document ``doc`` on ``engine`` and return its summary (``summary.json``'s content,
-    :func:`humanoid_sim.api.run_walk`) plus ``torque_rms_Nm`` (actuator name -> RMS |T|, N m).
+    :func:`humanoid_sim.api.run_walk`) plus ``torque_rms_Nm`` (actuator name -> RMS |T|, N m).  ``planner``: as
+    :func:`humanoid_sim.api.prepare`'s (a cache of the walk's plan).
 
     Raises:
         InputError: a bad scenario or engine. A walk that fails in the simulator returns normally with
@@ -66,7 +67,7 @@ def run_walk(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, 
     if engine not in ENGINE_NAMES:
         raise ValueError(f"engine: {engine!r} is not one of {', '.join(ENGINE_NAMES)}")
     model()   # counted once per process
-    run = api.run_walk(parse_scenario(doc, source), engine, verbose=False)
+    run = api.run_walk(parse_scenario(doc, source), engine, verbose=False, planner=planner)
     summary = run.summary
     trace = run.result.trace   # every integration step (the log where that is every step)
     rms = torque_rms(trace.columns["T"]) if trace is not None and len(trace) else np.full(len(T_NAMES), np.nan)
@@ -125,7 +126,7 @@ def flatten_summary(summary: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def walk_row(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, Any]:
+def walk_row(doc: dict, engine: str, source: str = "<sweep walk>", planner: Any = None) -> dict[str, Any]:
     """The Dask task of one walk: ``{"row": columns, "summary": summary or None}``, or ``{"interrupted": True}``
     when the walk was stopped by a KeyboardInterrupt (not a result: the runner does not record it).
 
@@ -139,7 +140,7 @@ def walk_row(doc: dict, engine: str, source: str = "<sweep walk>") -> dict[str, 
     STATS["walks"] += 1
     worker = f"{socket.gethostname()}:{os.getpid()}"
     try:
-        summary = run_walk(doc, engine, source)
+        summary = run_walk(doc, engine, source, planner)
     except Exception as exc:  # noqa: BLE001 - any failure of one walk is that walk's row, never the sweep's end
         row = {"completed": False, "status": "failed", "failure_kind": "exception",
                "reason": f"{type(exc).__name__}: {exc}",
