@@ -15,7 +15,9 @@ from humanoid_sim.scenario.fields import ScenarioError
 
 FEEDBACKS = ("dcm", "pd")
 """The values of ``BalanceSettings.feedback``."""
-_CHOICES = ("feedback",)
+BASE_VELOCITIES = ("filtered", "measured")
+"""The values of ``BalanceSettings.base_velocity``."""
+_CHOICES = ("feedback", "base_velocity")
 _FLAGS = ("time_shift", "lazy_torque_limits", "step_adjustment")
 
 
@@ -63,6 +65,11 @@ class BalanceSettings:
         step_outward_m: the largest move of a foothold away from the stance foot, m.
         step_min_width_m: the smallest lateral distance between the toe points of the landing and the stance foot
             (no crossing step), m.
+        base_velocity: the base twist the controller acts on, on real ground (an engine without a weld model; on
+            welds the observation's, exact): ``filtered`` (the sensed twist through a first-order low-pass filter of
+            cut-off ``base_velocity_filter_hz``: humanoid_sim.controllers.balance.estimate) or ``measured`` (as
+            sensed).
+        base_velocity_filter_hz: that filter's cut-off, Hz.
     """
 
     hip_omega: float = 12.0
@@ -99,10 +106,15 @@ class BalanceSettings:
     step_backward_m: float = 0.15
     step_outward_m: float = 0.15
     step_min_width_m: float = 0.12
+    base_velocity: str = "filtered"
+    base_velocity_filter_hz: float = 30.0
 
     def __post_init__(self) -> None:
         if self.feedback not in FEEDBACKS:
             raise InputError(f"BalanceSettings.feedback = {self.feedback!r}: expected one of {', '.join(FEEDBACKS)}")
+        if self.base_velocity not in BASE_VELOCITIES:
+            raise InputError(f"BalanceSettings.base_velocity = {self.base_velocity!r}: expected one of "
+                             f"{', '.join(BASE_VELOCITIES)}")
         for f in fields(self):
             x = getattr(self, f.name)
             if f.name in _CHOICES:
@@ -150,4 +162,4 @@ def parse_balance(src: str, raw: object) -> BalanceSettings:
         raise ScenarioError(f"{src}: balance.{str(exc).removeprefix('BalanceSettings.')}") from None
 
 
-__all__ = ["FEEDBACKS", "BalanceSettings", "parse_balance"]
+__all__ = ["BASE_VELOCITIES", "FEEDBACKS", "BalanceSettings", "parse_balance"]

@@ -76,12 +76,14 @@ Units: SI (m, rad, N, N m, s).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
 
 from humanoid_sim import kernel as _kernel
 from humanoid_sim.controllers.balance.compiled import balance_finish, balance_stage
+from humanoid_sim.controllers.balance.estimate import TwistFilter
 from humanoid_sim.controllers.balance.qp import BalanceTables, BoxWrenches, pd, qp_numpy, rot_y
 from humanoid_sim.controllers.balance.stage import FOOT_OF_MAIN, CompiledStage
 from humanoid_sim.controllers.balance.steps import dcm_feedback
@@ -189,6 +191,9 @@ class BalanceController:
                                 s.w_swing, *pd(s.posture_omega)], dtype=float)
         self._tables: dict[bool, BalanceTables] = {}     # the QP's constant inputs; by double support
         self.dcm = dcm_feedback(s, self.model, self.fid["Pc_17"], self.traj)   # None: the hip PD
+        # real ground: the sensed base twist low-passed (its noise would reach every task and the welds' damping)
+        self._twist = TwistFilter(s.base_velocity_filter_hz) \
+            if self._real_ground and s.base_velocity == "filtered" else None
 
     def _reference_time(self, obs: Observation) -> float:
         """The time at which the references are read, s: the plan's clock ``obs.t - obs.plan_delay`` (``time_shift``
@@ -210,6 +215,8 @@ class BalanceController:
     # ------------------------------------------------------------------ one call
     def __call__(self, obs: Observation) -> Command:
         self.calls += 1
+        if self._twist is not None:
+            obs = replace(obs, v=self._twist(obs.t, obs.v))
         k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
         s = self.settings
         tg = self._targets(obs)
@@ -267,6 +274,8 @@ class BalanceController:
             x, level = self._solve(G, g, np.vstack([C, -PT, PT]), np.concatenate([lo, Ph - lim, -Ph - lim]), ne,
                                    np.concatenate([cop_rows, np.zeros(2 * len(lim), dtype=bool)]))
             a, lam, tau, T_cmd, _ = self._finish(x, M, h, Jc, q, v, kin)
+        if self._twist is not None:
+            self._twist.acc = a[:6]       # the base twist filter's prediction for the next call
         if self._inside:          # the compiled finish checked the limits: nothing to clip (the usual case)
             T_sat, sat = T_cmd.copy(), _NO_SATURATION
         else:
