@@ -60,11 +60,16 @@ class RowBuffer:
 
     def next_row(self) -> np.ndarray:
         """A view of the next row (to be filled by the caller)."""
+        block, i = self.next_slot()
+        return block[i]
+
+    def next_slot(self) -> tuple[np.ndarray, int]:
+        """The block holding the next row and the row's index in it (to be filled by the caller; no view made)."""
         i = self._n % self.block
         if i == 0:
             self._blocks.append(np.empty((self.block, self.width)))
         self._n += 1
-        return self._blocks[-1][i]
+        return self._blocks[-1], i
 
     def __len__(self) -> int:
         return self._n

@@ -1,8 +1,7 @@
-"""The MuJoCo engine's compiled ground reads (humanoid_sim.engines.mujoco.compiled, .ground) against the NumPy reference
-path
-(humanoid_sim.engines.mujoco.contact, MujocoEngine._contact_record), to rounding (ROUNDING), at every control update of
-a real walk on
-MuJoCo's ground, and the engine's compiled and reference paths against each other (log, summary, falls)."""
+"""The MuJoCo engine's compiled ground reads and trace rows (humanoid_sim.engines.mujoco.compiled, .ground, .trace)
+against the NumPy reference path (humanoid_sim.engines.mujoco.contact, .ground.sole_friction, .trace.contact_record,
+.state.StateMap), to rounding (ROUNDING) or to the bit, at every control update of a real walk on MuJoCo's ground,
+and the engine's compiled and reference paths against each other (log, summary, falls)."""
 
 from __future__ import annotations
 
@@ -19,7 +18,14 @@ import pytest
 from humanoid_sim.engines.mujoco import compiled as mjc  # noqa: E402
 from humanoid_sim.engines.mujoco.contact import _tables, foot_loads, sole_tilt  # noqa: E402
 from humanoid_sim.engines.mujoco.engine import MujocoEngine  # noqa: E402
-from humanoid_sim.engines.mujoco.ground import GroundMeter, ReferenceGroundMeter, end_loads, trunk_tilt  # noqa: E402
+from humanoid_sim.engines.mujoco.ground import (  # noqa: E402
+    GroundMeter,
+    ReferenceGroundMeter,
+    end_loads,
+    sole_friction,
+    trunk_tilt,
+)
+from humanoid_sim.engines.mujoco.trace import TraceRecorder, contact_record  # noqa: E402
 from humanoid_sim.robot.model import HumanoidModel  # noqa: E402
 from humanoid_sim.robot.phases import Phase  # noqa: E402
 from humanoid_sim.scenario.schema import load_scenario  # noqa: E402
@@ -59,17 +65,31 @@ def _close(a: np.ndarray, b: np.ndarray, scale: float = 0.0) -> bool:
     return bool(np.all(np.abs(a[ok] - b[ok]) <= ROUNDING * scale))
 
 
+def _split(w: np.ndarray) -> tuple[np.ndarray, ...]:
+    """compiled.contact_wrenches' flat output as (fw, cop, bf, bm)."""
+    return w[:12].reshape(2, 6), w[12:18].reshape(2, 3), w[18:30].reshape(4, 3), w[30:].reshape(4, 3)
+
+
 def _wrenches(eng: MujocoEngine, compiled: bool) -> tuple[np.ndarray, ...]:
     """The record's (fw, cop, bf, bm) at the engine's current MuJoCo data, by the kernel or the NumPy path."""
-    d, out = eng.sim.data, (np.full((2, 6), 7.0), np.full((2, 3), 7.0), np.full((4, 3), 7.0), np.full((4, 3), 7.0))
+    d = eng.sim.data
     if compiled:
-        con = d.contact
+        con, w = d.contact, np.full(mjc.WRENCH_FLOATS, 7.0)
         assert mjc.contact_wrenches(con.geom, con.pos, con.frame, con.dim, con.efc_address, d.efc_force,
-                                    _tables(eng.mm).pair_array, eng.mm.floor_geom, eng._wrench_bodies, d.xipos,
-                                    d.xmat, *out)
-    else:
-        eng._contact_record(*out)
+                                    _tables(eng.mm).pair_array, eng.mm.floor_geom, eng.recorder.bodies, d.xipos,
+                                    d.xmat, w)
+        return _split(w)
+    out = (np.full((2, 6), 7.0), np.full((2, 3), 7.0), np.full((4, 3), 7.0), np.full((4, 3), 7.0))
+    contact_record(eng.mm, d, *out)
     return out
+
+
+def _friction(eng: MujocoEngine) -> np.ndarray:
+    """compiled.sole_friction at the engine's current MuJoCo data, (2, 3)."""
+    d, con, out = eng.sim.data, eng.sim.data.contact, np.full(6, 7.0)
+    assert mjc.sole_friction(con.geom, con.dim, con.efc_address, con.friction, d.efc_force, d.efc_vel,
+                             _tables(eng.mm).pair_array, out, 0)
+    return out.reshape(2, 3)
 
 
 @pytest.fixture(scope="module")
@@ -87,8 +107,13 @@ def walk_reads(hm: HumanoidModel) -> dict:
     ref = ReferenceGroundMeter(eng.mm, eng.settings.contact_force_N)
     pdata = hm.model.createData()
     found = {"updates": 0, "wrench_mismatch": [], "load_mismatch": [], "meter_mismatch": [], "tilt_gap": 0.0,
-             "state_mismatch": [],
-             "mid_run": [], "loaded": set(), "stance": set(), "supports": 0}
+             "state_mismatch": [], "friction_mismatch": [],
+             "mid_run": [], "loaded": set(), "stance": set(), "supports": 0, "sliding": 0}
+    # trace rows of the same MuJoCo steps by the compiled writer and by NumPy (one control update: zero torques)
+    recorders = {flag: TraceRecorder(eng.sim, eng.act, flag, flag) for flag in (True, False)}
+    for r in recorders.values():
+        r.control(np.zeros(hm.model.nv), None, None, None)
+    found["recorders"] = recorders
     measure = eng._measure
 
     def checked(t: float) -> bool:
@@ -101,6 +126,12 @@ def walk_reads(hm: HumanoidModel) -> dict:
         end_loads(eng.mm, d, ref_loads, False)
         if not _close(loads, ref_loads):
             found["load_mismatch"].append(t)
+        friction = np.array(sole_friction(eng.mm, d))
+        if not _same(_friction(eng), friction):
+            found["friction_mismatch"].append(t)
+        found["sliding"] += int(any(fn >= 20.0 and use >= 1 - 1e-4 for fn, use, _ in friction))
+        for r in recorders.values():
+            r.row(t, found["updates"], 3)
         smap = eng.map
         q, v = mjc.pin_state(d.qpos, d.qvel, smap.q_gather, smap.v_gather)
         qpos = d.qpos.copy()
@@ -116,7 +147,8 @@ def walk_reads(hm: HumanoidModel) -> dict:
         stance = {None: -1, "R": 0, "L": 1}[eng.phase.support_foot]
         r = ref.update(d, stance)
         for m in meters.values():
-            if m.update(d, stance) & 3 != r & 3 or not _close(m.out[:7], ref.out[:7]) or m.out[10] != ref.out[10]:
+            if m.update(d, stance) & 3 != r & 3 or not _close(m.out[:7], ref.out[:7]) or m.out[10] != ref.out[10] \
+                    or not _same(m.out[11:], ref.out[11:]):
                 found["meter_mismatch"].append(t)
             found["tilt_gap"] = max(found["tilt_gap"], float(np.max(np.abs(m.out[7:10] - ref.out[7:10]))))
         found["loaded"].add(r & 3)
@@ -141,6 +173,69 @@ def test_contact_wrenches_are_the_numpy_path_to_rounding(walk_reads: dict) -> No
     compiled.contact_loads = foot_loads, to rounding (:data:`ROUNDING`) at every control update of the walk."""
     assert walk_reads["updates"] > 700
     assert walk_reads["wrench_mismatch"] == [] and walk_reads["load_mismatch"] == []
+
+
+def test_friction_is_sole_friction(walk_reads: dict) -> None:
+    """compiled.sole_friction = ground.sole_friction (per foot: normal force, cone use, slip speed) to the bit at every
+    control update of the walk, sliding updates among them (their slip speeds feed the summary's sliding events)."""
+    assert walk_reads["friction_mismatch"] == []
+    assert walk_reads["sliding"] > 0
+
+
+def test_trace_rows_are_the_numpy_rows(walk_reads: dict) -> None:
+    """compiled.trace_row = TraceRecorder's NumPy row at every control update of the walk: the time, indices and
+    MuJoCo's state and acceleration to the bit, the wrenches to rounding (:data:`ROUNDING`); and the built traces
+    (compiled.pin_trajectory against StateMap's maps row by row) to rounding, the torques to the bit."""
+    rec = walk_reads["recorders"]
+    fast, ref = rec[True]._rows.array(), rec[False]._rows.array()
+    assert len(fast) == walk_reads["updates"] and fast.shape == ref.shape
+    w = rec[True].cols["fw"].start
+    assert _same(fast[:, :w], ref[:, :w])
+    assert all(_close(a, b) for a, b in zip(fast[:, w:], ref[:, w:]))
+    tf, tr = rec[True].build(), rec[False].build()
+    assert tf is not None and tr is not None and sorted(tf.columns) == sorted(tr.columns)
+    for k in ("q", "v", "a", "foot_wrench", "cop", "body_force", "body_moment", "zmp"):
+        assert all(_close(a, b) for a, b in zip(tf.columns[k], tr.columns[k])), k
+    for k in ("t", "phase", "basic_phase", "tau", "saturated", "in_contact"):
+        assert _same(tf.columns[k], tr.columns[k]), k
+
+
+def test_pin_trajectory_is_pin_state_and_acceleration(hm: HumanoidModel) -> None:
+    """compiled.pin_trajectory over rows = pin_state then pin_acceleration row by row, to the bit (random unit
+    quaternions, velocities and accelerations, zeros of both signs among them), on a row block with other columns
+    around the state's."""
+    from humanoid_sim.engines.mujoco import MujocoSim
+
+    smap = MujocoSim(hm).map
+    rng = np.random.default_rng(11)
+    n, at = 300, 4
+    rows = rng.normal(size=(n, at + smap.nq + 2 * smap.nv + 5))
+    quat = rng.normal(size=(n, 4))
+    rows[:, at + 3:at + 7] = quat / np.linalg.norm(quat, axis=1)[:, None]
+    rows[::7, at + smap.nq:] = -0.0
+    Q, V, A = mjc.pin_trajectory(rows, at, at + smap.nq, at + smap.nq + smap.nv, smap.nq, smap.nv, smap.q_gather,
+                                 smap.v_gather)
+    for i in range(n):
+        qpos, qvel = rows[i, at:at + smap.nq], rows[i, at + smap.nq:at + smap.nq + smap.nv]
+        q, v = mjc.pin_state(qpos, qvel, smap.q_gather, smap.v_gather)
+        a = mjc.pin_acceleration(q, v, rows[i, at + smap.nq + smap.nv:at + smap.nq + 2 * smap.nv], smap.v_gather)
+        assert _same(Q[i], q) and _same(V[i], v) and _same(A[i], a)
+
+
+def test_py_hypot_is_math_hypot() -> None:
+    """compiled.py_hypot = Python's math.hypot to the bit: random pairs over the whole range of magnitudes and
+    ratios (subnormals included), zeros of both signs, infinities and NaN."""
+    rng = np.random.default_rng(7)
+    pairs = []
+    for scale in (1e-310, 1e-300, 1e-160, 1e-8, 1e-3, 1.0, 1e3, 1e150, 1e300):
+        x = rng.normal(size=4000) * scale
+        y = x * rng.choice([1.0, 0.5, 1e-3, 1e-9, 1e-17, 1e-30], size=4000) * rng.normal(size=4000)
+        pairs += list(zip(x.tolist(), y.tolist()))
+    special = [0.0, -0.0, 1.0, -2.5, math.inf, -math.inf, math.nan, 5e-324, 1.7976931348623157e308]
+    pairs += [(a, b) for a in special for b in special]
+    for x, y in pairs:
+        got, want = mjc.py_hypot(x, y), math.hypot(x, y)
+        assert got == want or (math.isnan(got) and math.isnan(want)), (x, y, got, want)
 
 
 def test_state_maps_are_the_numpy_path_to_rounding(walk_reads: dict) -> None:
@@ -235,25 +330,37 @@ def test_contact_wrenches_with_the_sole_as_geom1_and_fallback(hm: HumanoidModel)
     con.frame[flip] = -con.frame[flip]
     for a, b in zip(_wrenches(eng, True), _wrenches(eng, False)):
         assert _close(a, b)
-    bufs = [np.full((2, 6), 7.0), np.full((2, 3), 7.0), np.full((4, 3), 7.0), np.full((4, 3), 7.0)]
+    w = np.full(mjc.WRENCH_FLOATS, 7.0)
     args = lambda adr, dim: (con.geom, con.pos, con.frame, dim, adr, d.efc_force,  # noqa: E731
-                             _tables(eng.mm).pair_array, eng.mm.floor_geom, eng._wrench_bodies, d.xipos, d.xmat)
+                             _tables(eng.mm).pair_array, eng.mm.floor_geom, eng.recorder.bodies, d.xipos, d.xmat)
     adr = con.efc_address.copy()
     adr[1] = -1
-    assert not mjc.contact_wrenches(*args(adr, con.dim), *bufs)
+    assert not mjc.contact_wrenches(*args(adr, con.dim), w)
     dim = con.dim.copy()
     dim[1] = 1
-    assert not mjc.contact_wrenches(*args(con.efc_address, dim), *bufs)
-    assert all((b == 7.0).all() for b in bufs)
+    assert not mjc.contact_wrenches(*args(con.efc_address, dim), w)
+    assert (w == 7.0).all()
+    # the friction reader declines the contacts it does not read (another dim, no positive coefficient) the same way
+    out = np.full(6, 7.0)
+    dim = con.dim.copy()
+    dim[1] = 4
+    assert not mjc.sole_friction(con.geom, dim, con.efc_address, con.friction, d.efc_force, d.efc_vel,
+                                 _tables(eng.mm).pair_array, out, 0)
+    mu = con.friction.copy()
+    mu[1, 0] = 0.0
+    assert not mjc.sole_friction(con.geom, con.dim, con.efc_address, mu, d.efc_force, d.efc_vel,
+                                 _tables(eng.mm).pair_array, out, 0)
+    assert (out == 7.0).all()
 
 
 @pytest.mark.slow
 def test_engine_paths_give_the_same_walk(hm: HumanoidModel) -> None:
     """The engine's compiled path and its NumPy reference path: the same log and the same ground summary over 1.2 s
-    of the 1.5x zmp walk.  Bit for bit on the development machine's wheels (measured); the state map's last bit is
-    another pinocchio / NumPy build's (see :data:`ROUNDING`), and MuJoCo's contact solver carries such a difference
-    on, so each array is compared to 1e-9 of its own largest magnitude: a formula difference (a wrong sign, index or
-    threshold) shows at 1e-3 and more."""
+    of the 1.5x zmp walk.  The state maps differ in the last bit (Eigen's and NumPy's rounding, see
+    :data:`ROUNDING`), and the controller and MuJoCo's contact solver carry such a difference on: under the DCM
+    feedback (the balance controller's default) it grows to ~5e-9 of an array's largest magnitude over the 1.2 s
+    (measured), so each array is compared to 1e-7 of its own largest magnitude: a formula difference (a wrong sign,
+    index or threshold) shows at 1e-3 and more."""
     sc = _zmp_scenario()
     runs = {}
     for flag in (None, False):
@@ -270,7 +377,7 @@ def test_engine_paths_give_the_same_walk(hm: HumanoidModel) -> None:
             return np.array_equal(x, y)
         if scale is None:
             scale = float(np.nanmax(np.abs(y))) if np.isfinite(y).any() else 0.0
-        return x.shape == y.shape and bool(np.allclose(x, y, rtol=0, atol=1e-9 * max(scale, 1e-300), equal_nan=True))
+        return x.shape == y.shape and bool(np.allclose(x, y, rtol=0, atol=1e-7 * max(scale, 1e-300), equal_nan=True))
 
     # the dynamics residual is a difference of joint torques (|rnea - tau - J^T f|): judged on the torques' scale
     scales = {"dynamics_residual": float(np.max(np.abs(a0["tau"])))}

@@ -262,10 +262,11 @@ def test_control_rate_converges_on_the_zmp_walk(hm):
 
 
 def test_body_wrenches_against_per_contact_sums(hm: HumanoidModel, sc) -> None:
-    """The log's ``body_force`` / ``body_moment`` (MujocoEngine._body_wrenches, one pass over a foot's contacts)
+    """The log's ``body_force`` / ``body_moment`` (trace.body_wrenches, one pass over a foot's contacts)
     against an independent read: per contact mj_contactForce turned to the world frame, summed per sole body with
     np.cross about the body's CoM, rotated to the body frame; standing on both feet, all four sole bodies loaded."""
     from humanoid_sim.engines.mujoco.contact import foot_contacts
+    from humanoid_sim.engines.mujoco.trace import body_wrenches
     from humanoid_sim.robot.model import FOOT_BODY, TOE_BODY
 
     _, eng = _hold(hm, sc, FlatFeetPD(), t_end=0.1)
@@ -273,7 +274,7 @@ def test_body_wrenches_against_per_contact_sums(hm: HumanoidModel, sc) -> None:
     feet = foot_contacts(mm, d)
     bf, bm = np.zeros((4, 3)), np.zeros((4, 3))
     for f in "RL":
-        eng._body_wrenches(f, feet[f], bf, bm)
+        body_wrenches(mm, d, f, feet[f], bf, bm)
     F_ref, M_ref = np.zeros((4, 3)), np.zeros((4, 3))
     for i in range(d.ncon):
         c = d.contact[i]

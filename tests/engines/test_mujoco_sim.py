@@ -139,3 +139,35 @@ def test_hold_and_advance_are_step(hm: HumanoidModel, q0: np.ndarray, tmp_path, 
     np.testing.assert_array_equal(q1, q_good)
     np.testing.assert_array_equal(v1, v_good)
     assert b.time == t_good
+
+
+@pytest.mark.parametrize("integrator", ["euler", "implicitfast", "rk4"])
+def test_advance_after_forward_is_mj_step(hm: HumanoidModel, q0: np.ndarray, integrator: str) -> None:
+    """advance after forward() (or set_state) reuses the position and velocity stages MuJoCo computed for the state
+    and steps from the acceleration stage on: the same run, bit for bit, as a full mj_step every time (a twin that
+    is never fresh), with torques changed, a force applied on the trunk and both of them taken off between the
+    forward and the step (what enters the acceleration stage only), for 200 ms on both feet; model_changed() makes
+    the next step compute every stage.  For every integrator MuJoCo offers (RK4 takes the full step)."""
+    a, b = (MujocoSim(hm, MujocoSettings(integrator=integrator)) for _ in range(2))
+    ctrl = StandingController(hm, q0, 2e-3)
+    rng = np.random.default_rng(2)
+    for s in (a, b):
+        s.set_state(q0, np.zeros(hm.model.nv))
+    b.model_changed()
+    for k in range(100):
+        a.forward()
+        tau = ctrl(*a.state()) + rng.normal(scale=2.0, size=hm.model.nv)
+        push = rng.normal(scale=30.0, size=6) if k % 3 else np.zeros(6)
+        for s in (a, b):
+            s.data.xfrc_applied[1] = push
+            s.hold(tau)
+        assert a._fresh and not b._fresh
+        for s in (a, b):
+            s.advance(2)
+        b.model_changed()
+        for name in ("qpos", "qvel", "qacc", "qfrc_constraint", "qacc_warmstart"):
+            assert getattr(a.data, name).tobytes() == getattr(b.data, name).tobytes(), (k, name)
+        assert a.data.efc_force.tobytes() == b.data.efc_force.tobytes() and a.time == b.time
+    assert a.foot_wrenches()["R"].normal > 0 and b.foot_wrenches()["L"].normal > 0
+    a.model_changed()
+    assert not a._fresh

@@ -1,27 +1,28 @@
 """Compiled (numba) forms of the MuJoCo engine's per-update and per-step bookkeeping.
 
 The reference of every number here is the NumPy code of :mod:`humanoid_sim.engines.mujoco.contact`,
-:mod:`humanoid_sim.engines.mujoco.state` and :meth:`humanoid_sim.engines.mujoco.engine.MujocoEngine._body_wrenches`;
-these
-functions compute the same numbers in the same order of floating-point operations (so the same bits;
-``tests/test_mujoco_compiled.py`` checks that at every update of real walks), without the ~50 small NumPy calls
-per read.  Where NumPy's order is its libraries' (Eigen's quaternion norm, a BLAS matrix-vector product), it was
-measured on this machine's builds (pinocchio's and NumPy's wheels): another build could differ in the last bit,
-which that test allows (4 ulp) where those libraries' rounding enters.
+:mod:`humanoid_sim.engines.mujoco.state`, :func:`humanoid_sim.engines.mujoco.ground.sole_friction` and
+:func:`humanoid_sim.engines.mujoco.trace.contact_record`; these functions compute the same numbers in the same order
+of floating-point operations (so the same bits; ``tests/engines/test_mujoco_compiled.py`` checks that at every update
+of real walks), without the ~50 small NumPy calls per read.  Where NumPy's order is its libraries' (Eigen's
+quaternion norm, a BLAS matrix-vector product), it was measured on this machine's builds (pinocchio's and NumPy's
+wheels): another build could differ in the last bit, which that test allows where those libraries' rounding enters.
 
 - :func:`contact_loads`: each sole box's normal force and each foot's penetration (:func:`.contact.foot_loads`);
 - :func:`ground_update`: those loads, the running penetration maximum, and a copy of what the slip and tilt
   measures read (sole boxes' placements, main bodies' z axes) into a row of a buffer that
   :class:`humanoid_sim.engines.mujoco.ground.GroundMeter` reduces with NumPy in batches (the tilt's ``np.arctan2`` is
-  not
-  libm's ``atan2`` to the bit, so it stays NumPy's); the feet's and the lower trunk's tilts by libm, for the fall
-  tests' thresholds only (the engine recomputes NumPy's value near a threshold);
+  not libm's ``atan2`` to the bit, so it stays NumPy's); the feet's and the lower trunk's tilts by libm, for the fall
+  tests' thresholds only (the engine recomputes NumPy's value near a threshold); the feet's friction
+  (:func:`sole_friction`, with Python's own ``math.hypot``: :func:`py_hypot`);
 - :func:`slip_reduce`: the slip meters (:class:`.contact.SlipMeter`) over a buffer's rows, from the sole corners
   NumPy computed from them (its matrix product may fuse multiply-adds: it stays NumPy's);
 - :func:`contact_wrenches`: the log's foot wrenches, centres of pressure and body wrenches of a step
-  (:func:`.contact.foot_contacts` and ``MujocoEngine._body_wrenches``);
+  (:func:`.contact.foot_contacts` and :func:`.trace.body_wrenches`), and :func:`trace_row`: a full-rate trace row
+  (the time and indices, MuJoCo's state and acceleration, those wrenches) in one call per MuJoCo step;
 - :func:`pin_state`, :func:`pin_acceleration`, :func:`dynamics_residual`, :func:`put_ctrl`: the state map's hot
-  path (:class:`.state.StateMap`'s q, v, a, tau of MuJoCo's constraint forces, the motors' torques).
+  path (:class:`.state.StateMap`'s q, v, a, tau of MuJoCo's constraint forces, the motors' torques), and
+  :func:`pin_trajectory`: q, v, a of every row of a trace in one call.
 
 Array arguments are MuJoCo's own (``data.contact.geom``, ``data.efc_force``, ...), read for an elliptic friction
 cone (a contact's normal force is its first ``efc_force`` row); the callers take the NumPy path otherwise.
@@ -37,10 +38,10 @@ import numpy as np
 
 from humanoid_sim.jit import AVAILABLE, njit  # noqa: F401 - AVAILABLE: whether numba is installed (else NumPy)
 
-ENTRY_POINTS = ("contact_loads", "ground_update", "contact_wrenches", "pin_state", "pin_acceleration",
-                "dynamics_residual", "put_ctrl", "all_finite", "slip_reduce")
+ENTRY_POINTS = ("contact_loads", "ground_update", "contact_wrenches", "trace_row", "pin_state", "pin_acceleration",
+                "pin_trajectory", "dynamics_residual", "put_ctrl", "all_finite", "slip_reduce")
 """The functions the engine calls from Python (numba caches each with its callees)."""
-CONTACT_ENTRY_POINTS = ("contact_loads", "ground_update", "contact_wrenches")
+CONTACT_ENTRY_POINTS = ("contact_loads", "ground_update", "contact_wrenches", "trace_row")
 """Those that read MuJoCo's contact fields: views with the contact struct's stride (numba's layout 'A') when there
 are two contacts or more, C-contiguous with one or none; each is compiled for both."""
 
@@ -64,10 +65,14 @@ main body's rotation matrix."""
 ROW_FLAGS = 5
 """Flags of a buffer row: per sole box whether it supports (its normal force >= the threshold), then the stance
 foot (0 R, 1 L, -1 none)."""
-OUT_SIZE = 11
+OUT_SIZE = 17
 """Floats of :func:`ground_update`'s ``out``: 0-3 the boxes' normal forces (N), 4-5 the feet's penetrations (m),
 6 the running penetration maximum (m; read and updated), 7-8 the feet's main-body tilts by libm (rad), 9 the lower
-trunk's tilt by libm (rad), 10 the lower trunk's CoM height (m)."""
+trunk's tilt by libm (rad), 10 the lower trunk's CoM height (m), 11-16 per foot (R, L) its friction: normal force
+(N), cone use, slip speed (m/s) (:func:`humanoid_sim.engines.mujoco.ground.sole_friction`)."""
+FRICTION_SKIPPED = 8
+"""Bit of :func:`ground_update`'s return: the friction was not read (a sole-floor contact of another ``dim`` than 1
+or 3, or without a positive friction coefficient where one divides: the caller reads it the NumPy way)."""
 
 
 @njit
@@ -112,15 +117,119 @@ def _tilt(R: np.ndarray, body: int) -> float:
     return math.atan2(math.hypot(R[body, 2], R[body, 5]), R[body, 8])
 
 
+_T27 = 134217729.0
+"""2^27 + 1: Veltkamp's constant, splitting a double into two halves whose products are exact."""
+
+
 @njit
-def ground_update(geom: np.ndarray, dist: np.ndarray, efc_address: np.ndarray, efc_force: np.ndarray,
-                  group: np.ndarray, ids: np.ndarray, geom_xpos: np.ndarray, geom_xmat: np.ndarray,
-                  xmat: np.ndarray, xipos: np.ndarray, f_min: float, limits: np.ndarray, stance: int,
-                  rows: np.ndarray, flags: np.ndarray, row: int, out: np.ndarray) -> int:
+def _add(csum: float, x: float, frac: float) -> tuple[float, float]:
+    """csum + x and frac plus the sum's rounding error (|csum| >= |x|)."""
+    s = csum + x
+    return s, frac + ((csum - s) + x)
+
+
+@njit
+def py_hypot(x: float, y: float) -> float:
+    """Python's ``math.hypot(x, y)`` to the bit: CPython 3.11's ``vector_norm`` (scaling by a power of two, squares
+    split into exact halves, compensated sums and a corrected square root; below the normal range a plain scaled
+    sum), not libm's ``hypot``, which may differ in the last bit."""
+    x = abs(x)
+    y = abs(y)
+    big = 0.0
+    if x > big:
+        big = x
+    if y > big:
+        big = y
+    if math.isinf(big):
+        return big
+    if math.isnan(x) or math.isnan(y):
+        return math.nan
+    if big == 0.0:
+        return big
+    e = math.frexp(big)[1]
+    csum, frac1, frac2, frac3 = 1.0, 0.0, 0.0, 0.0
+    if e >= -1023:
+        scale = math.ldexp(1.0, -e)
+        for v in (x * scale, y * scale):
+            t = v * _T27
+            hi = t - (t - v)
+            lo = v - hi
+            csum, frac1 = _add(csum, hi * hi, frac1)
+            csum, frac2 = _add(csum, 2.0 * hi * lo, frac2)
+            frac3 += lo * lo
+        h = math.sqrt(csum - 1.0 + (frac1 + frac2 + frac3))
+        t = h * _T27
+        hi = t - (t - h)
+        lo = h - hi
+        csum, frac1 = _add(csum, -hi * hi, frac1)
+        csum, frac2 = _add(csum, -2.0 * hi * lo, frac2)
+        csum, frac3 = _add(csum, -lo * lo, frac3)
+        return (h + (csum - 1.0 + (frac1 + frac2 + frac3)) / (2.0 * h)) / scale
+    for v in (x / big, y / big):     # ldexp(1.0, -e) would overflow: scaled by the largest instead
+        csum, frac1 = _add(csum, v * v, frac1)
+    return big * math.sqrt(csum - 1.0 + frac1)
+
+
+@njit
+def sole_friction(geom: np.ndarray, dim: np.ndarray, efc_address: np.ndarray, friction: np.ndarray,
+                  efc_force: np.ndarray, efc_vel: np.ndarray, group: np.ndarray, out: np.ndarray, o: int) -> bool:
+    """:func:`humanoid_sim.engines.mujoco.ground.sole_friction` for an elliptic cone: per foot (R, L) into
+    ``out[o:o + 6]`` its contacts' normal force (N), cone use and slip speed (m/s), summed in MuJoCo's contact
+    order with the same operations.  ``friction`` (ncon, 5): the contacts' coefficients; ``efc_vel``: the
+    constraint rows' velocities; the rest as :func:`contact_loads`.  Returns False, writing nothing, for a
+    sole-floor contact with rows whose ``dim`` is neither 1 nor 3 or whose tangential coefficients are not
+    positive (the caller then takes the NumPy path)."""
+    for c in range(geom.shape[0]):
+        if group[geom[c, 0], geom[c, 1]] >= 0 and efc_address[c] >= 0:
+            d = dim[c]
+            if d != 1 and (d != 3 or not (friction[c, 0] > 0.0 and friction[c, 1] > 0.0)):
+                return False
+    n0, n1, u0, u1, s0, s1 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    for c in range(geom.shape[0]):
+        g = group[geom[c, 0], geom[c, 1]]
+        a = efc_address[c]
+        if g < 0 or a < 0:
+            continue
+        n = efc_force[a]
+        if dim[c] == 1:
+            u = 0.0
+            slip = 0.0
+        else:
+            u = py_hypot(efc_force[a + 1] / friction[c, 0], efc_force[a + 2] / friction[c, 1])
+            slip = n * py_hypot(efc_vel[a + 1], efc_vel[a + 2])
+        if g < 2:
+            n0 += n
+            if dim[c] != 1:
+                u0 += u
+                s0 += slip
+        else:
+            n1 += n
+            if dim[c] != 1:
+                u1 += u
+                s1 += slip
+    for f, n, u, slip in ((0, n0, u0, s0), (1, n1, u1, s1)):
+        p = o + 3 * f
+        out[p] = n
+        if n > 0:
+            out[p + 1] = u / n
+            out[p + 2] = slip / n
+        else:
+            out[p + 1] = 0.0
+            out[p + 2] = 0.0
+    return True
+
+
+@njit
+def ground_update(geom: np.ndarray, dist: np.ndarray, dim: np.ndarray, efc_address: np.ndarray,
+                  friction: np.ndarray, efc_force: np.ndarray, efc_vel: np.ndarray, group: np.ndarray,
+                  ids: np.ndarray, geom_xpos: np.ndarray, geom_xmat: np.ndarray, xmat: np.ndarray, xipos: np.ndarray,
+                  f_min: float, limits: np.ndarray, stance: int, rows: np.ndarray, flags: np.ndarray, row: int,
+                  out: np.ndarray) -> int:
     """One control update's ground reads (module docstring).  Returns which feet carry at least ``f_min`` of
     normal force (bit 0 R, bit 1 L), plus 4 when a fall test may fire: ``limits`` = [a foot tilt, a CoM height,
     a trunk tilt]; one foot alone loaded with its libm tilt above limits[0], the trunk's CoM below limits[1] or
-    its libm tilt above limits[2].
+    its libm tilt above limits[2]; plus :data:`FRICTION_SKIPPED` when the feet's friction (out[11:17],
+    :func:`sole_friction`) was not read.
 
     ``ids`` = [sole geom of R toe, R main, L toe, L main, main body R, main body L, lower-trunk body];
     ``geom_xpos`` / ``geom_xmat`` / ``xmat`` / ``xipos``: MuJoCo's; ``stance``: the flat-held foot (0 R, 1 L, -1
@@ -152,7 +261,10 @@ def ground_update(geom: np.ndarray, dist: np.ndarray, efc_address: np.ndarray, e
     base = ids[6]
     out[9] = _tilt(xmat, base)
     out[10] = xipos[base, 2]
-    if (loaded == 1 and out[7] > limits[0]) or (loaded == 2 and out[8] > limits[0]) or out[10] < limits[1] \
+    if not sole_friction(geom, dim, efc_address, friction, efc_force, efc_vel, group, out, 11):
+        loaded |= FRICTION_SKIPPED
+    feet = loaded & 3
+    if (feet == 1 and out[7] > limits[0]) or (feet == 2 and out[8] > limits[0]) or out[10] < limits[1] \
             or out[9] > limits[2]:
         return loaded | 4
     return loaded
@@ -164,23 +276,16 @@ def _dot_col(M: np.ndarray, i: int, x0: float, x1: float, x2: float) -> float:
     return ((0.0 + M[i] * x0) + M[3 + i] * x1) + M[6 + i] * x2
 
 
-@njit
-def contact_wrenches(geom: np.ndarray, pos: np.ndarray, frame: np.ndarray, dim: np.ndarray,
-                     efc_address: np.ndarray, efc_force: np.ndarray, group: np.ndarray, floor: int,
-                     bodies: np.ndarray, xipos: np.ndarray, xmat: np.ndarray, fw: np.ndarray, cop: np.ndarray,
-                     bf: np.ndarray, bm: np.ndarray) -> bool:
-    """The ground's wrench on each foot and on each foot body at the current MuJoCo data (after ``mj_step`` or
-    ``mj_forward``), as :func:`humanoid_sim.engines.mujoco.contact.foot_contacts` and ``MujocoEngine._body_wrenches``
-    compute them.  Returns False, writing nothing, when a sole-floor contact has no constraint rows or the
-    contacts' ``dim`` differ (the callers then take the NumPy path, which reads such contacts with
-    ``mj_contactForce``).
+WRENCH_FLOATS = 42
+"""Floats of :func:`contact_wrenches`' output: the feet's wrenches ``fw`` (2 x 6), their centres of pressure ``cop``
+(2 x 3), the foot bodies' forces ``bf`` and moments ``bm`` (4 x 3 each), row-major, in this order."""
 
-    ``geom`` (ncon, 2), ``pos`` (ncon, 3), ``frame`` (ncon, 9), ``dim``, ``efc_address``: MuJoCo's contacts;
-    ``group``: as :func:`contact_loads`; ``floor``: the ground plane's geom id; ``bodies`` (4,): the foot bodies
-    by log row (R toe, L toe, R main, L main: thesis bodies 1-4).  Writes ``fw`` (2, 6): per foot (R, L) the
-    force (N, world frame) and its moment about the world origin (N m); ``cop`` (2, 3): the centre of pressure on
-    z = 0 (m; NaN without positive normal force); ``bf`` / ``bm`` (4, 3): per foot body (log row = body - 1) the
-    force and the moment about its CoM, in the body frame (N, N m), zero for a body without contact."""
+
+@njit
+def _wrenches(geom: np.ndarray, pos: np.ndarray, frame: np.ndarray, dim: np.ndarray, efc_address: np.ndarray,
+              efc_force: np.ndarray, group: np.ndarray, floor: int, bodies: np.ndarray, xipos: np.ndarray,
+              xmat: np.ndarray, out: np.ndarray, o: int) -> bool:
+    """:func:`contact_wrenches` writing its :data:`WRENCH_FLOATS` floats into ``out[o:o + 42]`` (1-d)."""
     n = geom.shape[0]
     d0 = -1
     for c in range(n):
@@ -188,18 +293,17 @@ def contact_wrenches(geom: np.ndarray, pos: np.ndarray, frame: np.ndarray, dim: 
             if efc_address[c] < 0 or (d0 >= 0 and dim[c] != d0):
                 return False
             d0 = dim[c]
-    for j in range(6):
-        fw[0, j] = 0.0
-        fw[1, j] = 0.0
-    for r in range(4):
-        for j in range(3):
-            bf[r, j] = 0.0
-            bm[r, j] = 0.0
+    fw, cp, bf, bm = o, o + 12, o + 18, o + 30
+    for j in range(12):
+        out[fw + j] = 0.0
+    for j in range(24):
+        out[bf + j] = 0.0
     body_sum = np.zeros((4, 6))
     body_hit = np.zeros(4, dtype=np.bool_)
     f6 = np.zeros(6)
     for foot in range(2):
         touched = False
+        w = fw + 6 * foot
         for c in range(n):
             g = group[geom[c, 0], geom[c, 1]]
             if g < 0 or (g >> 1) != foot:
@@ -223,12 +327,12 @@ def contact_wrenches(geom: np.ndarray, pos: np.ndarray, frame: np.ndarray, dim: 
             mx = (py * fz - pz * fy) + tx
             my = (pz * fx - px * fz) + ty
             mz = (px * fy - py * fx) + tz
-            fw[foot, 0] += fx
-            fw[foot, 1] += fy
-            fw[foot, 2] += fz
-            fw[foot, 3] += mx
-            fw[foot, 4] += my
-            fw[foot, 5] += mz
+            out[w] += fx
+            out[w + 1] += fy
+            out[w + 2] += fz
+            out[w + 3] += mx
+            out[w + 4] += my
+            out[w + 5] += mz
             # the contact's share of its body's wrench: force, and arm x force about the body's CoM
             r = foot + 2 * (g & 1)
             body = bodies[r]
@@ -240,23 +344,74 @@ def contact_wrenches(geom: np.ndarray, pos: np.ndarray, frame: np.ndarray, dim: 
             body_sum[r, 3] += ay * fz - az * fy
             body_sum[r, 4] += az * fx - ax * fz
             body_sum[r, 5] += ax * fy - ay * fx
-        fz = fw[foot, 2]
+        fz = out[w + 2]
+        p = cp + 3 * foot
         if touched and fz > 0:
-            cop[foot, 0] = -fw[foot, 4] / fz
-            cop[foot, 1] = fw[foot, 3] / fz
-            cop[foot, 2] = 0.0
+            out[p] = -out[w + 4] / fz
+            out[p + 1] = out[w + 3] / fz
+            out[p + 2] = 0.0
         else:
-            cop[foot, 0] = np.nan
-            cop[foot, 1] = np.nan
-            cop[foot, 2] = np.nan
+            out[p] = np.nan
+            out[p + 1] = np.nan
+            out[p + 2] = np.nan
     for r in range(4):
         if body_hit[r]:
             M = xmat[bodies[r]]
             t = body_sum[r]
             for i in range(3):
-                bf[r, i] = _dot_col(M, i, t[0], t[1], t[2])
-                bm[r, i] = _dot_col(M, i, t[3], t[4], t[5])
+                out[bf + 3 * r + i] = _dot_col(M, i, t[0], t[1], t[2])
+                out[bm + 3 * r + i] = _dot_col(M, i, t[3], t[4], t[5])
     return True
+
+
+@njit
+def contact_wrenches(geom: np.ndarray, pos: np.ndarray, frame: np.ndarray, dim: np.ndarray,
+                     efc_address: np.ndarray, efc_force: np.ndarray, group: np.ndarray, floor: int,
+                     bodies: np.ndarray, xipos: np.ndarray, xmat: np.ndarray, out: np.ndarray) -> bool:
+    """The ground's wrench on each foot and on each foot body at the current MuJoCo data (after ``mj_step`` or
+    ``mj_forward``), as :func:`humanoid_sim.engines.mujoco.contact.foot_contacts` and :func:`humanoid_sim.engines.
+    mujoco.trace.contact_record` compute them.  Returns False, writing nothing, when a sole-floor contact has no
+    constraint rows or the contacts' ``dim`` differ (the callers then take the NumPy path, which reads such
+    contacts with ``mj_contactForce``).
+
+    ``geom`` (ncon, 2), ``pos`` (ncon, 3), ``frame`` (ncon, 9), ``dim``, ``efc_address``: MuJoCo's contacts;
+    ``group``: as :func:`contact_loads`; ``floor``: the ground plane's geom id; ``bodies`` (4,): the foot bodies
+    by log row (R toe, L toe, R main, L main: thesis bodies 1-4).  Writes ``out`` (:data:`WRENCH_FLOATS`,): ``fw``
+    (2, 6), per foot (R, L) the force (N, world frame) and its moment about the world origin (N m); ``cop`` (2, 3),
+    the centre of pressure on z = 0 (m; NaN without positive normal force); ``bf`` / ``bm`` (4, 3), per foot body
+    (log row = body - 1) the force and the moment about its CoM, in the body frame (N, N m), zero for a body
+    without contact."""
+    return _wrenches(geom, pos, frame, dim, efc_address, efc_force, group, floor, bodies, xipos, xmat, out, 0)
+
+
+@njit
+def trace_row(geom: np.ndarray, pos: np.ndarray, frame: np.ndarray, dim: np.ndarray, efc_address: np.ndarray,
+              efc_force: np.ndarray, group: np.ndarray, floor: int, bodies: np.ndarray, xipos: np.ndarray,
+              xmat: np.ndarray, qpos: np.ndarray, qvel: np.ndarray, qacc: np.ndarray, t: float, k: int, basic: int,
+              update: int, wrenches: bool, block: np.ndarray, i: int) -> bool:
+    """Row ``i`` of ``block`` (a full-rate trace's row, :mod:`humanoid_sim.engines.mujoco.trace`): ``t`` (s),
+    ``k`` (the loop step), ``basic`` (the basic phase), ``update`` (the control update), MuJoCo's ``qpos``,
+    ``qvel`` (the state at the MuJoCo step's start) and ``qacc``, then with ``wrenches`` the ground's wrenches of
+    :func:`contact_wrenches` (the contact arguments as there).  Returns whether the wrenches were written (False:
+    not asked, or :func:`contact_wrenches` declined; the caller writes them)."""
+    row = block[i]
+    row[0] = t
+    row[1] = k
+    row[2] = basic
+    row[3] = update
+    o = 4
+    for j in range(qpos.size):
+        row[o + j] = qpos[j]
+    o += qpos.size
+    for j in range(qvel.size):
+        row[o + j] = qvel[j]
+    o += qvel.size
+    for j in range(qacc.size):
+        row[o + j] = qacc[j]
+    o += qacc.size
+    if not wrenches:
+        return False
+    return _wrenches(geom, pos, frame, dim, efc_address, efc_force, group, floor, bodies, xipos, xmat, row, o)
 
 
 # ---------------------------------------------------------------------------------------- the state map's hot path
@@ -315,6 +470,38 @@ def pin_acceleration(q: np.ndarray, v: np.ndarray, qacc: np.ndarray, v_gather: n
     a[1] = a[1] - (w2 * u0 - w0 * u2)
     a[2] = a[2] - (w0 * u1 - w1 * u0)
     return a
+
+
+@njit
+def _gather_into(x: np.ndarray, idx: np.ndarray, out: np.ndarray) -> None:
+    """out[:] = x[idx]."""
+    for i in range(idx.size):
+        out[i] = x[idx[i]]
+
+
+@njit
+def pin_trajectory(rows: np.ndarray, qpos_at: int, qvel_at: int, qacc_at: int, nq: int, nv: int,
+                   q_gather: np.ndarray, v_gather: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pinocchio's (q, v, a) (new (n, nq), (n, nv), (n, nv) arrays) of every row of ``rows`` (n, width), which holds
+    MuJoCo's qpos (``nq`` floats from column ``qpos_at``), qvel and qacc (``nv`` floats each, from ``qvel_at`` and
+    ``qacc_at``): per row :func:`pin_state`, then :func:`pin_acceleration` at that (q, v), the same operations."""
+    n = rows.shape[0]
+    Q = np.empty((n, q_gather.size))
+    V = np.empty((n, v_gather.size))
+    A = np.empty((n, v_gather.size))
+    for r in range(n):
+        q, v, a = Q[r], V[r], A[r]
+        x, u, acc = rows[r, qpos_at:qpos_at + nq], rows[r, qvel_at:qvel_at + nv], rows[r, qacc_at:qacc_at + nv]
+        _gather_into(x, q_gather, q)
+        _gather_into(u, v_gather, v)
+        _rotate_back(x[4], x[5], x[6], x[3], u, v)
+        _gather_into(acc, v_gather, a)
+        _rotate_back(q[3], q[4], q[5], q[6], acc, a)
+        u0, u1, u2, w0, w1, w2 = v[0], v[1], v[2], v[3], v[4], v[5]
+        a[0] = a[0] - (w1 * u2 - w2 * u1)
+        a[1] = a[1] - (w2 * u0 - w0 * u2)
+        a[2] = a[2] - (w0 * u1 - w1 * u0)
+    return Q, V, A
 
 
 @njit

@@ -57,12 +57,15 @@ MuJoCo's acceleration and MuJoCo's constraint forces (a check that both engines 
 keeps what these need from MuJoCo (acceleration, constraint forces, the contact wrenches: :meth:`MujocoEngine._record`)
 and :meth:`MujocoEngine.build_log` derives the Pinocchio quantities after the run.
 
-Cost: the ground reads at every control update (:mod:`humanoid_sim.engines.mujoco.ground`) and the step's contact
-wrenches
-are compiled (:mod:`humanoid_sim.engines.mujoco.compiled`, numba) unless ``compiled=False`` (``walk.py --no-kernel``) or
+Full-rate trace (:meth:`build_trace`): every MuJoCo step is recorded by :class:`humanoid_sim.engines.mujoco.trace.
+TraceRecorder` (the state at its start, its acceleration, the ground's wrenches, the control update it held); a
+step's log record takes its ground wrenches from the trace row of its first MuJoCo step.
+
+Cost: the ground reads at every control update (:mod:`humanoid_sim.engines.mujoco.ground`) and the trace rows are
+compiled (:mod:`humanoid_sim.engines.mujoco.compiled`, numba) unless ``compiled=False`` (``walk.py --no-kernel``) or
 numba is missing; both paths give the same numbers (to the bit on the development machine's builds; the tests
 allow a few units in the last place where pinocchio's or NumPy's own rounding enters:
-``tests/test_mujoco_compiled.py``).
+``tests/engines/test_mujoco_compiled.py``).
 
 summary.json gains (``run_info``): ``fell``, ``fall_time_s``, ``fall_reason``, ``foot_slip_max_m`` (largest
 horizontal travel of a sole box's corners while that box stays loaded, over both feet and the walk after the
@@ -86,20 +89,21 @@ import pinocchio as pin
 
 from humanoid_sim.dynamics.contact import record_anchors
 from humanoid_sim.engines.mujoco import compiled as mjc
-from humanoid_sim.engines.mujoco.contact import FootContact, _cross, _tables, foot_contacts, sole_cop, sole_tilt
+from humanoid_sim.engines.mujoco.contact import foot_contacts, sole_cop, sole_tilt
 from humanoid_sim.engines.mujoco.disturb import disturbance_info, scenario_pusher, scenario_terrain
 from humanoid_sim.engines.mujoco.ground import GroundMeter, ReferenceGroundMeter, end_loads, trunk_tilt
 from humanoid_sim.engines.mujoco.model import MujocoModelError, MujocoSettings
 from humanoid_sim.engines.mujoco.sim import MujocoSim, MujocoSimError
+from humanoid_sim.engines.mujoco.trace import TraceRecorder
 from humanoid_sim.engines.weld import BASIC, unwrap_to, yaw_of
 from humanoid_sim.errors import FallError
 from humanoid_sim.interfaces.controller import Command, Observation
 from humanoid_sim.interfaces.engine import StepRow
 from humanoid_sim.interfaces.log import SimLog
 from humanoid_sim.interfaces.selector import PhaseSelector, all_finite
-from humanoid_sim.interfaces.trace import RowBuffer, Trace
+from humanoid_sim.interfaces.trace import Trace
 from humanoid_sim.robot.actuators import Actuators
-from humanoid_sim.robot.model import FOOT_BODY, TOE_BODY, HumanoidModel
+from humanoid_sim.robot.model import HumanoidModel
 from humanoid_sim.robot.phases import Phase
 from humanoid_sim.scenario.schema import Scenario
 
@@ -186,22 +190,6 @@ class MujocoRecord(NamedTuple):
     cop: np.ndarray
 
 
-_PHASE_OF_BASIC = sorted(BASIC, key=BASIC.__getitem__)  # basic phase index -> Phase
-
-
-def _trace_layout(nq: int, nv: int) -> dict[str, Any]:
-    """Columns of a trace row (:meth:`MujocoEngine._trace_row`): 4 scalars, then MuJoCo's qpos (nq), qvel and
-    qacc (nv), the feet's wrenches (2 x 6) and centres of pressure (2 x 3), the foot bodies' forces and moments
-    (4 x 3 each)."""
-    cols: dict[str, Any] = {}
-    at = 4
-    for name, size in (("qpos", nq), ("qvel", nv), ("qacc", nv), ("fw", 12), ("cop", 6), ("bf", 12), ("bm", 12)):
-        cols[name] = slice(at, at + size)
-        at += size
-    cols["width"] = at
-    return cols
-
-
 class MujocoEngine:
     """The thesis humanoid on MuJoCo's ground (see the module docstring).
 
@@ -247,29 +235,24 @@ class MujocoEngine:
             for jid in range(2, hm.model.njoints):
                 dof = self.mm.model.joint(hm.model.names[jid]).dofadr[0]
                 self.mm.model.dof_armature[dof] += hm.model.armature[hm.model.idx_vs[jid]]
+        self.sim.model_changed()
         self.act = Actuators(hm)
         self.data = hm.model.createData()
         self.rec_data = hm.model.createData()
         self.fid = {n: hm.frame_id(n) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2")}
         self._frame_ids: dict[str, int] = {}
         self._n_sub = self.sim.substeps(self.settings.control_period_s)  # checks the period is whole timesteps
-        self._body = {TOE_BODY[f]: self.mm.foot_bodies[f][0] for f in FEET}
-        self._body.update({FOOT_BODY[f]: self.mm.foot_bodies[f][1] for f in FEET})
         self._no_sat = np.zeros(26, dtype=bool)
         elliptic = self.mm.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
         self.compiled = compiled is not False and mjc.AVAILABLE and elliptic
-        # the kernel's contact wrenches know the floor alone: with terrain the NumPy path reads them
-        self._wrench_kernel = self.compiled and not self.mm.terrain_geoms
         self.pusher = scenario_pusher(hm, scenario, traj, self.mm, self.sim.data)   # None without pushes
-        self._group = _tables(self.mm).pair_array
-        self._wrench_bodies = np.array([self._body[b] for b in (1, 2, 3, 4)], dtype=np.intp)  # log rows
+        # the full-rate trace; the kernel's contact wrenches know the floor alone: with terrain the NumPy path
+        # reads them
+        self.recorder = TraceRecorder(self.sim, self.act, self.compiled, not self.mm.terrain_geoms)
         self.q = self.v = None
         self.phase: Phase | None = None
         self.anchors = None
         self._end = np.zeros(6)       # the loads at the state after the last step (ground.end_loads)
-        nq_mj, nv_mj = self.mm.model.nq, self.mm.model.nv
-        # full-rate trace row: t, phase index, basic phase, control update, qpos, qvel, qacc, fw, cop, bf, bm
-        self._cols = _trace_layout(nq_mj, nv_mj)
         self._reset_measures()
 
     def _reset_measures(self) -> None:
@@ -291,8 +274,7 @@ class MujocoEngine:
         self.phase = phase
         self.anchors = record_anchors(self.model, self.q, phase.contacts)
         self._reset_measures()
-        self._rows = RowBuffer(self._cols["width"])
-        self._updates: list[tuple[np.ndarray, Any, Any, Any]] = []   # per control update: tau, T, saturated, T_cmd
+        self.recorder.start()
         if self.pusher is not None:
             self.pusher.reset()
         self.sim.forward()
@@ -312,8 +294,8 @@ class MujocoEngine:
         if not (n_ctrl >= 1 and abs(n_ctrl * period - h) <= 1e-9 * max(1.0, h)):
             raise MujocoSimError(f"loop step h = {h!r} s: expected a whole number of control periods "
                                  f"(MujocoEngineSettings.control_period_s = {period:g} s)")
-        phase, anchors, sim, pusher = self.phase, self.anchors, self.sim, self.pusher
-        data = sim.data
+        phase, anchors, sim, pusher, rec = self.phase, self.anchors, self.sim, self.pusher, self.recorder
+        qacc, dt, basic = sim.data.qacc, sim.timestep, BASIC[phase]
         record: MujocoRecord | None = None
         q, v = self.q, self.v
         for i in range(n_ctrl):
@@ -323,24 +305,24 @@ class MujocoEngine:
                 checks.check_stage(ti, q, v, i)
             cmd = control(Observation(ti, k, phase, q, v, anchors, i, checks.plan_delay))
             tau = self._tau(q, cmd)
-            self._updates.append((tau.copy(), cmd.T, cmd.saturated, cmd.T_cmd))
+            rec.control(tau, cmd.T, cmd.saturated, cmd.T_cmd)
             if pusher is not None:
                 pusher.apply(ti, period)
             # one MuJoCo step first: its acceleration and contact forces are those of the state at ti
             sim.hold(tau)
             sim.advance(1)
-            checks.check_acceleration(ti, data.qacc)  # finite iff Pinocchio's a is
-            self._trace_row(ti, k)
+            checks.check_acceleration(ti, qacc)  # finite iff Pinocchio's a is
+            rec.row(ti, k, basic)
             if i == 0:
                 record = self._record(q, v, cmd, tau)
             if self._measure(ti):
                 break  # a fall: the run ends at this state (check() reports it)
             for j in range(1, self._n_sub):   # the rest of the control period, tau still held
                 sim.advance(1)
-                self._trace_row(ti + j * sim.timestep, k)
+                rec.row(ti + j * dt, k, basic)
         self.q, self.v = sim.state()
         sim.forward()
-        end_loads(self.mm, data, self._end, self.compiled)
+        end_loads(self.mm, sim.data, self._end, self.compiled)
         assert record is not None, "a step runs at least one control update"
         return record
 
@@ -355,12 +337,10 @@ class MujocoEngine:
         """What the log keeps of the state (q, v) at a step's start, read right after its first MuJoCo step (whose
         acceleration and contact forces are those of that state): MuJoCo's acceleration and constraint forces,
         the command, the phase's anchors, and the ground's wrenches on the feet (foot wrench, centre of pressure,
-        body wrenches, as :meth:`_trace_row` read them for the same step).  :meth:`_derive` computes the rest after the
-        run."""
+        body wrenches, as the trace row of the same step read them: :class:`.trace.TraceRecorder`).  :meth:`_derive`
+        computes the rest after the run."""
         data = self.sim.data
-        c, row = self._cols, self._last_row   # the trace row of this same MuJoCo step holds its ground wrenches
-        fw, cop = row[c["fw"]].reshape(2, 6).copy(), row[c["cop"]].reshape(2, 3).copy()
-        bf, bm = row[c["bf"]].reshape(4, 3).copy(), row[c["bm"]].reshape(4, 3).copy()
+        fw, cop, bf, bm = self.recorder.last_wrenches()
         qacc = data.qacc.copy()
         T, T_cmd, sat = cmd.T, cmd.T_cmd, cmd.saturated
         if T is None:   # the controller gave tau only: the thesis torques now (a failure ends the run with a reason)
@@ -374,19 +354,6 @@ class MujocoEngine:
         a_from_qacc`)."""
         return mjc.pin_acceleration(q, v, qacc, self.map.v_gather) if self.compiled else \
             self.map.a_from_qacc(q, v, qacc)
-
-    def _contact_record(self, fw: np.ndarray, cop: np.ndarray, bf: np.ndarray, bm: np.ndarray) -> None:
-        """:meth:`_record`'s ground wrenches by :func:`foot_contacts` and :meth:`_body_wrenches` (the reference of
-        :func:`humanoid_sim.engines.mujoco.compiled.contact_wrenches`)."""
-        feet = foot_contacts(self.mm, self.sim.data)
-        bf[:] = 0.0
-        bm[:] = 0.0
-        for i, f in enumerate(FEET):
-            c = feet[f]
-            fw[i, :3], fw[i, 3:] = c.force, c.moment
-            cop[i] = c.cop                                   # NaN without normal force
-            if len(c.points):
-                self._body_wrenches(f, c, bf, bm)
 
     def _derive(self, q: np.ndarray, v: np.ndarray, qacc: np.ndarray, qfrc_c: np.ndarray, T: Any, T_cmd: Any,
                 sat: Any, thdd_c: Any, tau: np.ndarray, anchors: Any) -> tuple:
@@ -422,26 +389,6 @@ class MujocoEngine:
                 o[fid["O_17"]].rotation.copy(), o[fid["P_tpR"]].translation.copy(),
                 o[fid["P_tpL"]].translation.copy(), o[fid["O_1"]].rotation.copy(), o[fid["O_2"]].rotation.copy())
 
-    def _body_wrenches(self, foot: str, c: FootContact, bf: np.ndarray, bm: np.ndarray) -> None:
-        """Write into rows ``body - 1`` of bf / bm (4, 3) the ground's force on each of the foot's loaded bodies
-        (toe, main) and its moment about the body's CoM, in the body frame (N, N m), from its contacts ``c``: per
-        body, the sums over its contacts (MuJoCo's order) of the force and of arm x force, then rotated."""
-        data, boxes = self.sim.data, c.point_geom
-        bodies = (TOE_BODY[foot], FOOT_BODY[foot])
-        ids = [self._body[b] for b in bodies]
-        arm = c.points - data.xipos[ids][boxes]              # each contact from its body's CoM, world frame
-        g = np.empty((len(boxes), 6))
-        g[:, :3] = c.point_force
-        g[:, 3:] = _cross(arm, c.point_force)
-        present = set(boxes.tolist())
-        for box, body in enumerate(bodies):
-            if box not in present:
-                continue
-            total = g[boxes == box].sum(axis=0)
-            Rt = data.xmat[ids[box]].reshape(3, 3).T
-            bf[body - 1] = Rt @ total[:3]
-            bm[body - 1] = Rt @ total[3:]
-
     def _frame_id(self, name: str) -> int:
         """Pinocchio frame id of a named frame, cached."""
         fid = self._frame_ids.get(name)
@@ -449,69 +396,10 @@ class MujocoEngine:
             fid = self._frame_ids[name] = self.hm.frame_id(name)
         return fid
 
-    # ------------------------------------------------------------------ the full-rate trace
-    def _trace_row(self, t: float, k: int) -> None:
-        """Record the MuJoCo step just taken (:mod:`humanoid_sim.interfaces.trace`): the state at its start, its
-        acceleration and the ground's wrenches (those of that state), and the control update whose torques it
-        held."""
-        c, data = self._cols, self.sim.data
-        row = self._rows.next_row()
-        row[0], row[1], row[2], row[3] = t, k, BASIC[self.phase], len(self._updates) - 1
-        qpos, qvel = self.sim.state_before_step()
-        row[c["qpos"]] = qpos
-        row[c["qvel"]] = qvel
-        row[c["qacc"]] = data.qacc
-        fw, cop = row[c["fw"]].reshape(2, 6), row[c["cop"]].reshape(2, 3)
-        bf, bm = row[c["bf"]].reshape(4, 3), row[c["bm"]].reshape(4, 3)
-        done = False
-        if self._wrench_kernel:
-            con = data.contact
-            done = mjc.contact_wrenches(con.geom, con.pos, con.frame, con.dim, con.efc_address, data.efc_force,
-                                        self._group, self.mm.floor_geom, self._wrench_bodies, data.xipos,
-                                        data.xmat, fw, cop, bf, bm)
-        if not done:
-            self._contact_record(fw, cop, bf, bm)
-        self._last_row = row
-
     def build_trace(self) -> Trace | None:
-        """The run's full-rate trace: one row per MuJoCo step (:attr:`sim`'s timestep), in Pinocchio's conventions
-        (None before any step).  Torques are those of the control update each step held; the thesis torques of a
-        controller that gives joint torques only are derived at every step's state."""
-        R = self._rows.array()
-        n = len(R)
-        if n == 0:
-            return None
-        c, smap = self._cols, self.map
-        upd = R[:, 3].astype(np.intp)
-        Q, V, A = np.empty((n, self.model.nq)), np.empty((n, self.model.nv)), np.empty((n, self.model.nv))
-        qpos, qvel, qacc = R[:, c["qpos"]], R[:, c["qvel"]], R[:, c["qacc"]]
-        for i in range(n):
-            if self.compiled:
-                Q[i], V[i] = mjc.pin_state(qpos[i], qvel[i], smap.q_gather, smap.v_gather)
-            else:
-                Q[i], V[i] = smap.q_from_qpos(qpos[i]), smap.v_from_qvel(qpos[i], qvel[i])
-            A[i] = self._acceleration(Q[i], V[i], qacc[i])
-        taus = np.array([u[0] for u in self._updates])
-        TAU = taus[upd]
-        if all(u[1] is not None for u in self._updates):
-            T = np.array([u[1] for u in self._updates])[upd]
-            T_cmd = np.array([u[3] if u[3] is not None else u[1] for u in self._updates])[upd]
-            sat = np.array([u[2] if u[2] is not None else self._no_sat for u in self._updates])[upd]
-        else:
-            T = T_cmd = np.array([self.act.thesis_torques(Q[i], V[i], A[i], TAU[i]) for i in range(n)])
-            sat = np.zeros((n, 26), dtype=bool)
-        fw = R[:, c["fw"]].reshape(n, 2, 6)
-        ftot, mtot = fw[:, :, :3].sum(axis=1), fw[:, :, 3:].sum(axis=1)
-        zmp = np.full((n, 3), np.nan)
-        ok = ftot[:, 2] > 1e-9
-        zmp[ok] = np.stack([-mtot[ok, 1] / ftot[ok, 2], mtot[ok, 0] / ftot[ok, 2], np.zeros(ok.sum())], axis=1)
-        basic = R[:, 2].astype(int)
-        stance = np.array([[f in ph.stance_feet for f in FEET] for ph in _PHASE_OF_BASIC])
-        cols = {"t": R[:, 0].copy(), "phase": R[:, 1].astype(int), "basic_phase": basic, "q": Q, "v": V, "a": A,
-                "tau": TAU, "T": T, "T_cmd": T_cmd, "saturated": sat, "body_force": R[:, c["bf"]].reshape(n, 4, 3),
-                "body_moment": R[:, c["bm"]].reshape(n, 4, 3), "foot_wrench": fw,
-                "cop": R[:, c["cop"]].reshape(n, 2, 3), "zmp": zmp, "in_contact": stance[basic]}
-        return Trace(cols, self.sim.timestep, "engine")
+        """The run's full-rate trace: one row per MuJoCo step (:meth:`.trace.TraceRecorder.build`; None before any
+        step)."""
+        return self.recorder.build()
 
     # ------------------------------------------------------------------ ground measures and falls
     def _measure(self, t: float) -> bool:

@@ -30,8 +30,9 @@ after it: those maxima are then the whole run's, as are the settling ones.
 into a buffer row, and the slip and tilt maxima are reduced from the buffer every :attr:`GroundMeter.chunk`
 updates (and when read), with the same operations as the reference on each row: the sole corners and the tilts
 by NumPy (its matrix product may fuse multiply-adds; its ``np.arctan2`` is not libm's ``atan2`` to the bit), the
-slip meters' arithmetic compiled (:func:`.compiled.slip_reduce`).  Both read the friction with the same
-:func:`sole_friction` at every update.
+slip meters' arithmetic compiled (:func:`.compiled.slip_reduce`).  The same call reads the feet's friction
+(:func:`.compiled.sole_friction`: :func:`sole_friction`'s sums, with Python's ``math.hypot`` to the bit), except
+for contacts it does not read (another ``dim`` than 1 or 3), where :func:`sole_friction` does.
 
 Both meters fill :attr:`out` (:data:`.compiled.OUT_SIZE` floats, layout there): the fall tests' tilts there are
 libm's for :class:`GroundMeter`, so a test near a threshold recomputes NumPy's (:func:`.contact.sole_tilt`).
@@ -48,6 +49,7 @@ import mujoco
 import numpy as np
 
 from humanoid_sim.engines.mujoco.compiled import (
+    FRICTION_SKIPPED,
     OUT_SIZE,
     ROW_FLAGS,
     ROW_FLOATS,
@@ -251,6 +253,7 @@ class _Settling:
 
     mm: MujocoModel
     f_min: float
+    out: np.ndarray
 
     def _init_settling(self, settling_s: float | None) -> None:
         self._dt = float(self.mm.model.opt.timestep)
@@ -276,7 +279,10 @@ class _Settling:
         return t
 
     def _slide(self, data: mujoco.MjData, t: float) -> None:
-        self.sliding.update(t, sole_friction(self.mm, data, self._elliptic))
+        """The feet's friction by :func:`sole_friction` into ``out[11:17]`` and the sliding meter."""
+        friction = sole_friction(self.mm, data, self._elliptic)
+        self.out[11:17] = np.ravel(friction)
+        self.sliding.update(t, friction)
 
     def _maxima(self) -> dict[str, float]:
         raise NotImplementedError
@@ -429,14 +435,18 @@ class GroundMeter(_Settling):
             self._fixed = (data.geom_xpos, data.geom_xmat, data.xmat, data.xipos)
         con = data.contact
         xpos, gmat, xmat, xipos = self._fixed
-        loaded = ground_update(con.geom, con.dist, con.efc_address, data.efc_force, self._group, self._ids, xpos,
-                               gmat, xmat, xipos, self.f_min, self._limits, stance, self._rows, self._flags, self._n,
-                               self.out)
+        code = ground_update(con.geom, con.dist, con.dim, con.efc_address, con.friction, data.efc_force, data.efc_vel,
+                             self._group, self._ids, xpos, gmat, xmat, xipos, self.f_min, self._limits, stance,
+                             self._rows, self._flags, self._n, self.out)
         self._n += 1
         if self._n == self.chunk:
             self._reduce()
-        self._slide(data, t)
-        return loaded
+        if code & FRICTION_SKIPPED:
+            self._slide(data, t)
+        else:
+            f = self.out.tolist()
+            self.sliding.update(t, ((f[11], f[12], f[13]), (f[14], f[15], f[16])))
+        return code & ~FRICTION_SKIPPED
 
     # ------------------------------------------------------------------ the maxima
     @property

@@ -34,6 +34,8 @@ _BAD = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujo
         mujoco.mjtWarning.mjWARN_BADCTRL)
 _BAD_ROWS = np.array([int(w) for w in _BAD], dtype=np.intp)
 """Their rows of ``data.warning``, in _BAD's order."""
+_VEL_STAGE = int(mujoco.mjtStage.mjSTAGE_VEL)
+_EULER, _RK4 = int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4)
 
 
 class MujocoSimError(SimulationError):
@@ -59,6 +61,7 @@ class MujocoSim:
         self._fresh = False
         self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters, updated in place
         self._saved = (np.empty(self.model.nq), np.empty(self.model.nv))  # advance()'s copy of (qpos, qvel)
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel   # views: MjData's fixed-size arrays do not move
         self.set_state(hm.initial_q(), np.zeros(hm.model.nv))
 
     # ------------------------------------------------------------------ state
@@ -126,15 +129,31 @@ class MujocoSim:
         before = warnings.tobytes()       # all counters: only _BAD's rows matter, the others rarely change
         t_start = d.time
         qpos, qvel = self._saved
-        np.copyto(qpos, d.qpos)
-        np.copyto(qvel, d.qvel)
+        np.copyto(qpos, self._qpos)
+        np.copyto(qvel, self._qvel)
         t_end = t_start + n * self.timestep
-        mujoco.mj_step(m, d, n)
-        self._fresh = False
+        if self._fresh and m.opt.integrator != _RK4:
+            # the position and velocity stages of this state are current (set_state, forward): mj_step without
+            # computing them again, as MuJoCo's own mj_step1 / mj_step2 split does (the same numbers: those stages
+            # read qpos, qvel and the model only; the controls and applied forces enter the acceleration stage).
+            # RK4 evaluates its own stages: it takes the full step, as MuJoCo's split does not serve it either.
+            mujoco.mj_checkPos(m, d)
+            mujoco.mj_checkVel(m, d)
+            mujoco.mj_forwardSkip(m, d, _VEL_STAGE, 0)
+            mujoco.mj_checkAcc(m, d)
+            if m.opt.integrator == _EULER:
+                mujoco.mj_Euler(m, d)
+            else:   # implicitfast
+                mujoco.mj_implicit(m, d)
+            if n > 1:
+                mujoco.mj_step(m, d, n - 1)
+            self._fresh = False
+        else:
+            mujoco.mj_step(m, d, n)
         # MuJoCo answers a non-finite or huge qpos/qvel/qacc with a warning and a reset of the data (time back to
         # 0), and a huge control with a warning and ctrl = 0: either way the run is no longer the one asked for.
         if warnings.tobytes() == before and abs(d.time - t_end) <= 1e-6 and \
-                (mjc.all_finite(d.qvel) if self.compiled else np.isfinite(d.qvel).all()):
+                (mjc.all_finite(self._qvel) if self.compiled else np.isfinite(self._qvel).all()):
             return
         was = np.frombuffer(before, dtype=warnings.dtype)
         hit = [w.name for w, row in zip(_BAD, _BAD_ROWS) if warnings[row] != was[row]]
@@ -150,10 +169,17 @@ class MujocoSim:
         return self._saved
 
     def forward(self) -> None:
-        """Bring MuJoCo's derived quantities (kinematics, contacts, contact forces) to the current state."""
+        """Bring MuJoCo's derived quantities (kinematics, contacts, contact forces) to the current state (the next
+        :meth:`advance` reuses its position and velocity stages: after editing the model call
+        :meth:`model_changed`)."""
         if not self._fresh:
             mujoco.mj_forward(self.model, self.data)
             self._fresh = True
+
+    def model_changed(self) -> None:
+        """The model's parameters were edited (e.g. ``dof_armature``): the next :meth:`forward` or :meth:`advance`
+        computes every stage anew."""
+        self._fresh = False
 
     # ------------------------------------------------------------------ outputs
     def foot_wrenches(self) -> dict[str, FootContact]:
