@@ -16,6 +16,24 @@ def _value(row: dict[str, Any], key: str) -> float:
     return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
 
 
+def _zoom(ax: Any, keep: list[dict[str, Any]], rows: list[dict[str, Any]], xk: str, yk: str) -> int:
+    """Limit the axes to the feasible candidates and the baseline, padded by half their span (a fallen walk's
+    objectives can lie far off and would squeeze the front into a line); returns how many candidates fall outside."""
+    import numpy as np
+
+    pts = np.array([[_value(r, xk), _value(r, yk)] for r in keep], dtype=float).reshape(-1, 2)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if len(pts) < 2:
+        return 0
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = np.maximum(0.5 * (hi - lo), 0.05 * np.maximum(np.abs(hi), 1e-9))
+    lo, hi = lo - pad, hi + pad
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    allp = np.array([[_value(r, xk), _value(r, yk)] for r in rows], dtype=float).reshape(-1, 2)
+    return int(np.sum(~((allp >= lo) & (allp <= hi)).all(axis=1)))
+
+
 def plot_pareto(study: DesignStudy, rows: list[dict[str, Any]], best: list[int], path: Path) -> Path:
     """Draw the figure (module docstring) into ``path`` (PNG) and return it.
 
@@ -67,10 +85,12 @@ def plot_pareto(study: DesignStudy, rows: list[dict[str, Any]], best: list[int],
         if r["trial"] in best:
             ax.annotate(f"trial {r['trial']}", (_value(r, xk), _value(r, yk)), textcoords="offset points",
                         xytext=(6, 6), fontsize=8, color="tab:red")
+    hidden = _zoom(ax, [r for r in cand if r[ACCEPTED]] + ([base] if base is not None else []), cand, xk, yk)
     ax.set_xlabel(xk.removeprefix("objective:") + (f" ({study.objectives[0].direction})" if two else ""))
     ax.set_ylabel(yk.removeprefix("objective:") + f" ({study.objectives[1 if two else 0].direction})")
     n_feas = sum(1 for r in cand if r[ACCEPTED])
-    ax.set_title(f"{study.source.stem}: {len(cand)} candidates on {study.engine}, {n_feas} feasible", fontsize=10)
+    ax.set_title(f"{study.source.stem}: {len(cand)} candidates on {study.engine}, {n_feas} feasible"
+                 + (f" ({hidden} far outside, not shown)" if hidden else ""), fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
