@@ -154,14 +154,15 @@ def test_a_demand_beyond_the_sole_puts_the_cop_on_the_margin(hm, sc):
     assert free > 0.02                                   # the walk itself: well inside
     ctx = ControlContext(hm, sc, _Pushed(sim.traj, 0.1), sim.q0, "pinocchio", sim.engine.constraints)
     # friction at the full cone (friction_safety 1): the default 0.3 binds the pushed sole's tangential force
-    # before its CoP reaches the edge (measured 1.8 mm inside), and this test is about the CoP rows
-    pushed = BalanceController(BalanceSettings(friction_safety=1.0))
+    # before its CoP reaches the edge (measured 1.8 mm inside), and this test is about the CoP rows.  The hip PD
+    # (feedback pd) pulls to the displaced hip reference; the DCM law follows the CoM plan, which is not displaced
+    pushed = BalanceController(BalanceSettings(friction_safety=1.0, feedback="pd"))
     pushed.setup(ctx)
     lam = pushed(obs).motion[1]
     margin, tol = _world_cop_margin(hm, obs.q, frame, lam[:6])
     assert tol < 1e-3                                    # the sole sits < 1 mm above the ground: a sharp check
     assert margin == pytest.approx(BalanceSettings().cop_margin_ssp_m, abs=tol)   # on the shrunk boundary
-    loose = BalanceController(BalanceSettings(cop_margin_ssp_m=0.0, friction_safety=1.0))
+    loose = BalanceController(BalanceSettings(cop_margin_ssp_m=0.0, friction_safety=1.0, feedback="pd"))
     loose.setup(ctx)
     margin, tol = _world_cop_margin(hm, obs.q, frame, loose(obs).motion[1][:6])
     assert margin == pytest.approx(0.0, abs=tol)         # no margin asked: on the sole's edge
