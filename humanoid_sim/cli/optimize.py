@@ -60,14 +60,12 @@ def main(argv: list[str] | None = None) -> int:
 def _main(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from humanoid_sim.cli.sweep import _ADDRESS, _build_kernel, _build_mujoco, _cores
+    from humanoid_sim.cli.sweep import _build_kernel, _build_mujoco, _cores, cluster_options_error
     from humanoid_sim.sweep.design_file import MAX_TRIALS, DesignFileError, load_design
 
-    if args.workers is not None and (args.workers < 1 or args.scheduler is not None):
-        return _fail_input(f"--workers: expected a number of local worker processes >= 1 (and no --scheduler), "
-                           f"got {args.workers}")
-    if args.scheduler is not None and not _ADDRESS.match(args.scheduler):
-        return _fail_input(f"--scheduler: expected a scheduler address PROTOCOL://HOST:PORT, got {args.scheduler!r}")
+    bad = cluster_options_error(args)
+    if bad is not None:
+        return _fail_input(bad)
     if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
         return _fail_input(f"--trials: expected a number of candidates in [1, {MAX_TRIALS}], got {args.trials}")
     from humanoid_sim.paths import DESIGNS_DIR

@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from humanoid_sim.cli.sweep import _ADDRESS, _cores
+from humanoid_sim.cli.sweep import _cores, cluster_options_error
 
 PROG = "humanoid-push"
 
@@ -81,14 +81,9 @@ def main(argv: list[str] | None = None) -> int:
 def _main(args: argparse.Namespace) -> int:
     from humanoid_sim.sweep.push import PushError, make_benchmark
 
-    if args.workers is not None and args.scheduler is not None:
-        return _fail_input("--workers: applies to the local cluster only; the cluster of --scheduler has its own "
-                           "workers")
-    if args.workers is not None and args.workers < 1:
-        return _fail_input(f"--workers: expected a number of worker processes >= 1, got {args.workers}")
-    if args.scheduler is not None and not _ADDRESS.match(args.scheduler):
-        return _fail_input(f"--scheduler: expected a scheduler address PROTOCOL://HOST:PORT (e.g. "
-                           f"tcp://127.0.0.1:8786), got {args.scheduler!r}")
+    bad = cluster_options_error(args)
+    if bad is not None:
+        return _fail_input(bad)
     try:
         bench = make_benchmark(args.scenario, args.phase, args.directions, args.instants, args.compare,
                                args.max_impulse, args.resolution)

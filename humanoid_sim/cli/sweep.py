@@ -74,15 +74,23 @@ def main(argv: list[str] | None = None) -> int:
         return 1
 
 
-def _main(args: argparse.Namespace) -> int:
+def cluster_options_error(args: argparse.Namespace) -> str | None:
+    """What is wrong with the ``--workers`` / ``--scheduler`` options (the commands that run walks on Dask share
+    them), or None."""
     if args.workers is not None and args.scheduler is not None:
-        return _fail_input("--workers: applies to the local cluster only; the cluster of --scheduler has its own "
-                           "workers")
+        return "--workers: applies to the local cluster only; the cluster of --scheduler has its own workers"
     if args.workers is not None and args.workers < 1:
-        return _fail_input(f"--workers: expected a number of worker processes >= 1, got {args.workers}")
+        return f"--workers: expected a number of worker processes >= 1, got {args.workers}"
     if args.scheduler is not None and not _ADDRESS.match(args.scheduler):
-        return _fail_input(f"--scheduler: expected a scheduler address PROTOCOL://HOST:PORT (e.g. "
-                           f"tcp://127.0.0.1:8786), got {args.scheduler!r}")
+        return (f"--scheduler: expected a scheduler address PROTOCOL://HOST:PORT (e.g. tcp://127.0.0.1:8786), got "
+                f"{args.scheduler!r}")
+    return None
+
+
+def _main(args: argparse.Namespace) -> int:
+    bad = cluster_options_error(args)
+    if bad is not None:
+        return _fail_input(bad)
     from humanoid_sim.sweep.spec import SweepError, load_sweep
     from humanoid_sim.sweep.table import TableError, TableSink, read_rows, row_key
 

@@ -31,6 +31,7 @@ import json
 import os
 import tempfile
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -132,7 +133,7 @@ class RobotVariant:
         """How much higher the lower trunk's CoM (frame Pc_17, the path's hip point) stands above the ankles at the
         same joint angles, m: the shank's and thigh's length changes plus that of the lower trunk's CoM above its
         hip joints (``l17z - c17``, with the trunk's factor)."""
-        d = {k: float(_value(v)) for k, v in yaml.safe_load(Path(self.base).read_text())["dimensions"].items()}
+        d = {k: float(_value(v)) for k, v in _table(self.base)[1]["dimensions"].items()}
         f = dict(self.length_scale)
         return (d["l9"] * (f.get("shank", 1.0) - 1.0) + d["l11"] * (f.get("thigh", 1.0) - 1.0)
                 + (d["l17z"] - d["c17"]) * (f.get("trunk", 1.0) - 1.0))
@@ -141,8 +142,21 @@ class RobotVariant:
         """Hash of the parameters and of the base body table's text (16 hex digits): the cache's file name."""
         text = json.dumps(self.parameters(), sort_keys=True, separators=(",", ":"))
         h = hashlib.sha256(text.encode())
-        h.update(Path(self.base).read_bytes())
+        h.update(_table(self.base)[0])
         return h.hexdigest()[:16]
+
+
+def _table(path: Path) -> tuple[bytes, dict[str, Any]]:
+    """The body table's bytes and parsed document, read once per process and file version (every scenario with a
+    ``robot`` section asks for them; callers must not change the document)."""
+    path = Path(path)
+    return _read_table(path, path.stat().st_mtime_ns)
+
+
+@lru_cache(maxsize=4)
+def _read_table(path: Path, mtime_ns: int) -> tuple[bytes, dict[str, Any]]:
+    data = path.read_bytes()
+    return data, yaml.safe_load(data)
 
 
 class VariantError(ModelError):
@@ -253,7 +267,7 @@ def check_sole_length(length_m: float, foot_scale: float = 1.0, base: Path = DEF
     Raises:
         VariantError: the sole is not longer than the toe body plus 0.01 m.
     """
-    toe = float(_value(yaml.safe_load(Path(base).read_text())["dimensions"]["l1"])) * foot_scale
+    toe = float(_value(_table(base)[1]["dimensions"]["l1"])) * foot_scale
     if length_m <= toe + 0.01:
         raise VariantError(f"length_m = {length_m:g}: expected more than the toe body's length {toe:.4g} m + 0.01 m "
                            "(the heel box runs from the heel to the toe joint)")
@@ -337,7 +351,7 @@ def variant_files(variant: RobotVariant, folder: Path | None = None) -> tuple[Pa
     name = f"robot_{variant.key()}"
     spec_path, urdf_path = folder / f"{name}.yaml", folder / f"{name}.urdf"
     if not (spec_path.is_file() and urdf_path.is_file()):
-        doc = variant_doc(yaml.safe_load(Path(variant.base).read_text()), variant)
+        doc = variant_doc(_table(variant.base)[1], variant)   # variant_doc changes a deep copy
         spec = parse_spec(doc, f"robot variant {name}")
         header = ("# A variant of the thesis humanoid's body table, written by humanoid_sim.robot.variant from\n"
                   f"# {Path(variant.base).name} and the parameters under meta.variant.\n")
