@@ -219,7 +219,14 @@ class BalanceController:
             obs = replace(obs, v=self._twist(obs.t, obs.v))
         k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
         s = self.settings
-        tg = self._targets(obs)
+        kin_data = None
+        if self._stage is not None:
+            # the compiled path's kinematics first: the QP's Jacobians, M and h, and the DCM's CoM read from them
+            kin_data = self._kin_data
+            pin.computeJointJacobiansTimeVariation(self.model, kin_data, q, v)
+            pin.crba(self.model, kin_data, q)
+            pin.nonLinearEffects(self.model, kin_data, q, v)
+        tg = self._targets(obs, kin_data)
         # each flat foot (main body welded, toe locked) carries two ground wrenches, on its heel box and on its toe
         # box (see the module docstring); the box rows and weights of this phase
         welds = phase.contacts.welds
@@ -293,10 +300,11 @@ class BalanceController:
         return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=self._thdd,
                        motion=(a, lam), motion_model=self.weld, extra=extra)
 
-    def _targets(self, obs: Observation) -> Targets:
-        """The references of this call on the plan's clock (they depend on time only, not on the state): the hip's,
-        and the swing foot's (its feed-forward ramped in, the landing depth and search on real ground) or the
-        trailing heel's lift in double support."""
+    def _targets(self, obs: Observation, kin_data: pin.Data | None = None) -> Targets:
+        """The references of this call on the plan's clock: the hip's (through the DCM law, which measures the
+        state: ``kin_data`` holds its forward kinematics when computed already), and the swing foot's (its
+        feed-forward ramped in, the landing depth and search on real ground) or the trailing heel's lift in double
+        support."""
         s = self.settings
         k, phase = obs.k, obs.phase
         t = self._reference_time(obs)   # the plan's clock: it waits for a late touchdown
@@ -310,7 +318,7 @@ class BalanceController:
             p_ref, v6_ref, R_ref = traj.hip_reference(k, t)
             tg = Targets(t=t, hip=(p_ref, v6_ref, R_ref, traj.hip_acceleration(k, t)))
         if self.dcm is not None:       # the hip task realises the DCM law (dcm.py) instead of its own PD
-            tg.hip = self.dcm.hip_targets(tg.hip, traj.com_targets(k, t), k, t, obs.q, obs.v)
+            tg.hip = self.dcm.hip_targets(tg.hip, traj.com_targets(k, t), k, t, obs.q, obs.v, kin_data)
         info = traj.phases[k]
         if info.swing_foot is not None:
             foot = info.swing_foot
@@ -455,15 +463,12 @@ class BalanceController:
 
     def _qp_compiled(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,
                      unload: np.ndarray) -> tuple:
-        """:meth:`_qp_reference` in one compiled call (:func:`.compiled.balance_stage`): Pinocchio computes the
-        joint Jacobians and their time variation, M and h; the kernel the placements, frame motions, constraint
-        rows, task rows and the QP."""
+        """:meth:`_qp_reference` in one compiled call (:func:`.compiled.balance_stage`): Pinocchio has computed the
+        joint Jacobians and their time variation, M and h (:meth:`__call__`); the kernel the placements, frame
+        motions, constraint rows, task rows and the QP."""
         s = self.settings
         k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
-        model, d = self.model, self._kin_data
-        pin.computeJointJacobiansTimeVariation(model, d, q, v)
-        pin.crba(model, d, q)
-        pin.nonLinearEffects(model, d, q, v)
+        d = self._kin_data
         h = d.nle.copy()
         st = self._stage
         tgt = self._tgt

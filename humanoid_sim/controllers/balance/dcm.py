@@ -72,19 +72,25 @@ class ZmpShift:
         self.omega = float(omega)
         self.windows: list[ZmpWindow] = []
 
-    def at(self, t: float, skip: ZmpWindow | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(dp, dxi) (2,) each, m: the ZMP offset and the DCM reference offset at plan time t, without ``skip``."""
-        dp = np.zeros(2)
-        dxi = np.zeros(2)
+    def at(self, t: float, skip: ZmpWindow | None = None) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(dp, dxi) as (x, y) pairs, m: the ZMP offset and the DCM reference offset at plan time t, without
+        ``skip``.  Scalar arithmetic (the controller's per-call path: a walk ends with a window per step, and a
+        2-vector numpy operation costs ~0.5 us); windows that moved nothing are skipped."""
+        px = py = xx = xy = 0.0
         om = self.omega
         for w in self.windows:
             if w is skip or t >= w.t1:
                 continue
+            dx, dy = float(w.d[0]), float(w.d[1])
+            if dx == 0.0 and dy == 0.0:
+                continue
             if t >= w.t0:
-                dp += w.d
+                px += dx
+                py += dy
             e = math.exp(-om * max(w.t0 - t, 0.0)) - math.exp(-om * min(w.t1 - t, 700.0))
-            dxi += w.d * e
-        return dp, dxi
+            xx += dx * e
+            xy += dy * e
+        return (px, py), (xx, xy)
 
 
 class DcmFeedback:
@@ -113,18 +119,26 @@ class DcmFeedback:
         self.xi_err = np.zeros(2)
         """The last call's measured DCM minus its reference (shifted by the moved footholds), m."""
 
-    def measure(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def measure(self, q: np.ndarray, v: np.ndarray, data: pin.Data | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Measure the whole-body CoM (``c``, ``c_dot``, ``xi``) at (q, v); returns the Body-17 CoM's position (3,)
-        m and linear velocity (3,) m/s, world frame."""
-        model, d = self.model, self.data
-        pin.centerOfMass(model, d, q, v, False)      # forward kinematics to the velocity level, then the CoM
+        m and linear velocity (3,) m/s, world frame.  ``data``: a Data of the same model whose forward kinematics
+        at (q, v) to the velocity level are already computed (the controller's compiled path computes them for the
+        QP), else this feedback's own data runs them."""
+        model = self.model
+        if data is None:
+            d = self.data
+            pin.centerOfMass(model, d, q, v, False)      # forward kinematics to the velocity level, then the CoM
+        else:
+            d = data
+            pin.centerOfMass(model, d, pin.KinematicLevel.VELOCITY, False)
         self.c, self.c_dot = d.com[0], d.vcom[0]
         self.xi = capture_point(self.c, self.c_dot, self.omega)
         f = self.hip_frame
         pin.updateFramePlacement(model, d, f)
         return d.oMf[f].translation, pin.getFrameVelocity(model, d, f, LWA).linear
 
-    def hip_targets(self, hip: tuple, com_ref: tuple, k: int, t: float, q: np.ndarray, v: np.ndarray) -> tuple:
+    def hip_targets(self, hip: tuple, com_ref: tuple, k: int, t: float, q: np.ndarray, v: np.ndarray,
+                    data: pin.Data | None = None) -> tuple:
         """The Body-17 CoM task's (position, velocity (6,), orientation, acceleration (6,)) that realise the DCM law:
         horizontally the measured hip (no PD error) and the plan's hip acceleration plus the law's deviation from the
         plan's CoM acceleration; vertically and in orientation the plan's ``hip`` unchanged.
@@ -136,27 +150,34 @@ class DcmFeedback:
             k: the phase index (the step adjustment's single support).
             t: the plan's time, s (for the moved footholds' offsets).
             q, v: the state.
+            data: forward kinematics at (q, v) already computed (:meth:`measure`), or None.
         """
         p_ref, v6_ref, R_ref, a6_ref = hip
         c_ref, cd_ref, a_ref, _ = com_ref
-        p_hip, v_hip = self.measure(q, v)
+        p_hip, v_hip = self.measure(q, v, data)
         om = self.omega
-        xi_plan = c_ref + cd_ref / om
+        # scalar arithmetic, the same law as dcm_acceleration (a 2-vector numpy operation costs ~0.5 us)
+        crx, cry = float(c_ref[0]), float(c_ref[1])
+        xpx, xpy = crx + float(cd_ref[0]) / om, cry + float(cd_ref[1]) / om       # the plan's DCM
+        xi = self.xi
+        xix, xiy = float(xi[0]), float(xi[1])
         st = self.steps
         if st is not None:     # the error against the plan with the earlier moved footholds, not this step's own
-            _, dxi0 = self.shift.at(t, skip=st.window if st.k == k else None)
-            st.update(k, t, self.xi - xi_plan - dxi0, om, R_ref)
-        dp, dxi = self.shift.at(t)
-        xi_ref = xi_plan + dxi
+            _, (d0x, d0y) = self.shift.at(t, skip=st.window if st.k == k else None)
+            st.update(k, t, (xix - xpx - d0x, xiy - xpy - d0y), om, R_ref)
+        (dpx, dpy), (dxx, dxy) = self.shift.at(t)
+        ex, ey = xix - (xpx + dxx), xiy - (xpy + dxy)
+        self.xi_err = np.array((ex, ey))
         # the moved footholds shift the LIPM ZMP: c_ddot_ref + omega^2 (c - c_ref) becomes that minus omega^2 dp
-        c = self.c[:2]
-        self.xi_err = self.xi - xi_ref
-        acc = dcm_acceleration(c, self.xi, c_ref + dp, xi_ref, a_ref, om, self.gain)
+        w2, wk = om * om, om * (om + self.gain)
+        c = self.c
+        dax = w2 * (float(c[0]) - (crx + dpx)) - wk * ex       # the law's deviation from the plan's acceleration
+        day = w2 * (float(c[1]) - (cry + dpy)) - wk * ey
         p = p_ref.copy()
-        p[:2] = p_hip[:2]
+        p[0], p[1] = p_hip[0], p_hip[1]
         v6 = v6_ref.copy()
-        v6[:2] = v_hip[:2]
+        v6[0], v6[1] = v_hip[0], v_hip[1]
         a6 = a6_ref.copy()
-        a6[:2] += acc - a_ref
+        a6[0] += dax
+        a6[1] += day
         return p, v6, R_ref, a6
-
