@@ -118,7 +118,15 @@ class Controller(Protocol):
     An optional attribute ``control_period_s`` says how often the engine calls it: absent, every 1 ms with the
     torques held in between (:data:`humanoid_sim.sim.simulate.USER_CONTROL_PERIOD_S`, stable for ordinary joint PD
     gains); a number, that period in s; None, at every integration stage as a feedthrough of the state (the shipped
-    thesis and balance controllers, as the thesis's Simulink model evaluates its controller)."""
+    thesis and balance controllers, as the thesis's Simulink model evaluates its controller).
+
+    Optional hooks the stepping loop calls when present: ``landing()`` after a touchdown taught the trajectory the
+    actual landing (drop cached references); ``shortened_swing(k) -> bool`` at the touchdown ending single support
+    k: True when the controller landed that swing early on purpose (step timing), and the plan's clock then jumps
+    to the double support's start (:meth:`humanoid_sim.interfaces.selector.PhaseSelector.advance`);
+    ``swing_landing(k) -> ndarray | None``: where (world toe point, m) the controller lands single support k's swing
+    when it moved the foothold, so that a touchdown sensed there counts (the travel guard of 6.1.1.1 measures
+    against it), or None for the plan's."""
 
     name: str
 

@@ -127,8 +127,9 @@ class PhaseSelector:
         """True: a double support lasts its planned duration and ends no earlier than its planned end on the plan's
         clock (the trajectory asks for it), else section 6.1.1's hip-distance / overtime rule."""
         self.plan_delay = 0.0
-        """How much later than planned the latest touchdown so far came, s (>= 0): the plan's clock is t - plan_delay
-        (it waits for a late touchdown and never runs ahead).  Only touchdowns count: a double support ends on the
+        """How much later than planned the latest touchdown so far came, s: the plan's clock is t - plan_delay (it
+        waits for a late touchdown; it runs ahead only after a swing the controller shortened on purpose, see
+        :meth:`advance`, and plan_delay is then < 0).  Only touchdowns count: a double support ends on the
         step grid, up to half a step after its planned end, and counting that would ratchet the delay up by a few
         ms at every step (measured: 63 ms over the 60 s walk)."""
 
@@ -194,11 +195,16 @@ class PhaseSelector:
             return
         info = self.info
         elapsed = t - self.records[-1].t_start
-        if elapsed > self.settings.max_phase_overtime * info.duration:
+        nominal = info.duration
+        if self.dsp_on_schedule and info.swing_foot is None:
+            # a double support started by an early touchdown lasts until its planned end on the plan's clock
+            nominal = max(nominal, info.t_end + self.plan_delay - self.records[-1].t_start)
+        if elapsed > self.settings.max_phase_overtime * nominal:
             raise SimulationError(
                 f"{self.where()} has lasted {elapsed:.2f} s, more than {self.settings.max_phase_overtime:g} x its "
-                f"nominal {info.duration:.3f} s (the swing foot never touched down)" if info.swing_foot else
-                f"{self.where()} has lasted {elapsed:.2f} s")
+                f"nominal {nominal:.3f} s (the swing foot never touched down)" if info.swing_foot else
+                f"{self.where()} has lasted {elapsed:.2f} s, more than {self.settings.max_phase_overtime:g} x its "
+                f"nominal {nominal:.3f} s")
 
     def should_switch(self, t: float, hip_p: np.ndarray, swing_toe_p: np.ndarray | None) -> bool:
         """Section 6.1.1: touchdown ends an SSP (``swing_toe_p`` needed), the hip-distance or overtime rule a DSP."""
@@ -232,13 +238,15 @@ class PhaseSelector:
     def end_phase(self, t: float) -> None:
         self.records[-1].t_end = t
 
-    def advance(self, t: float, toe_start: np.ndarray | None) -> None:
-        """Start the next phase at time t; ``toe_start``: its swing toe point (SSP) or None."""
+    def advance(self, t: float, toe_start: np.ndarray | None, early: bool = False) -> None:
+        """Start the next phase at time t; ``toe_start``: its swing toe point (SSP) or None.  ``early``: the
+        controller shortened the swing that just touched down (step timing): the plan's clock jumps to the double
+        support's start, so the walk runs ahead of its schedule by the time gained instead of waiting for it."""
         self.k += 1
         self.phase = self.phase.next
         nxt = self.traj.phases[self.k]
         if self.phase.is_double_support:   # started by a sensed touchdown (a double support ends on schedule)
-            self.plan_delay = max(self.plan_delay, t - nxt.t_start)
+            self.plan_delay = t - nxt.t_start if early else max(self.plan_delay, t - nxt.t_start)
         self.records.append(PhaseRecord(self.k, self.phase.value, t, nominal_start=nxt.t_start,
                                         nominal_end=nxt.t_end))
         self.targets = self.traj.phase_targets(self.k)

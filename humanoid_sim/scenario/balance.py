@@ -18,7 +18,7 @@ FEEDBACKS = ("dcm", "pd")
 BASE_VELOCITIES = ("filtered", "measured")
 """The values of ``BalanceSettings.base_velocity``."""
 _CHOICES = ("feedback", "base_velocity")
-_FLAGS = ("time_shift", "lazy_torque_limits", "step_adjustment")
+_FLAGS = ("time_shift", "lazy_torque_limits", "step_adjustment", "step_timing")
 
 
 @dataclass(frozen=True)
@@ -65,6 +65,10 @@ class BalanceSettings:
         step_outward_m: the largest move of a foothold away from the stance foot, m.
         step_min_width_m: the smallest lateral distance between the toe points of the landing and the stance foot
             (no crossing step), m.
+        step_timing: with ``step_adjustment``, land the swing foot earlier when the foothold the DCM asks for lies
+            beyond the reach (the swing's path on a faster clock; humanoid_sim.controllers.balance.steps).
+        step_min_time_s: the shortest remaining swing time step timing may leave, s.
+        step_max_rate: the fastest the swing's path may run, times the plan's speed (>= 1).
         base_velocity: the base twist the controller acts on, on real ground (an engine without a weld model; on
             welds the observation's, exact): ``filtered`` (the sensed twist through a first-order low-pass filter of
             cut-off ``base_velocity_filter_hz``: humanoid_sim.controllers.balance.estimate) or ``measured`` (as
@@ -106,6 +110,9 @@ class BalanceSettings:
     step_backward_m: float = 0.15
     step_outward_m: float = 0.15
     step_min_width_m: float = 0.12
+    step_timing: bool = True
+    step_min_time_s: float = 0.15
+    step_max_rate: float = 2.5
     base_velocity: str = "filtered"
     base_velocity_filter_hz: float = 30.0
 
@@ -126,6 +133,9 @@ class BalanceSettings:
             ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
             nonneg = f.name.startswith(("w_", "cop_", "step_")) or f.name in ("landing_depth_m", "heel_lift_rad")
             lo_ok = x >= 0 if nonneg else x > 0
+            if f.name == "step_max_rate" and ok and x < 1.0:
+                raise InputError(f"BalanceSettings.step_max_rate = {x!r}: expected a finite number >= 1 (the "
+                                 "swing's path never runs slower than the plan)")
             if not (ok and lo_ok) or (f.name in ("friction_safety", "torque_margin") and x > 1.0):
                 raise InputError(f"BalanceSettings.{f.name} = {x!r}: expected a finite number "
                                  f"{'>= 0' if nonneg else '> 0'}"

@@ -130,11 +130,12 @@ class _Driven:
         return self.drive(self.checked(obs), obs)
 
 
-def _travelled(sel: PhaseSelector, toe: np.ndarray) -> bool:
+def _travelled(sel: PhaseSelector, toe: np.ndarray, end: np.ndarray | None = None) -> bool:
     """The guard of a sensed touchdown: the swing toe has covered more than the geometric rule's share of its
-    planned horizontal travel (6.1.1.1's second clause; its height clause is what the sensed contact replaces)."""
+    planned horizontal travel (6.1.1.1's second clause; its height clause is what the sensed contact replaces).
+    ``end``: where the controller lands the swing when it moved the foothold (None: the plan's end point)."""
     th = replace(sel.thresholds, touchdown_tolerance=math.inf)
-    return ssp_should_end(toe, sel.toe_start, sel.targets.swing_toe_end, th)
+    return ssp_should_end(toe, sel.toe_start, sel.targets.swing_toe_end if end is None else end, th)
 
 
 def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scenario: Scenario, q0: np.ndarray,
@@ -170,6 +171,8 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
     status, error, trace_text = RunStatus.FAILED, None, None
     steps = 0
     on_landing = getattr(controller, "landing", None)
+    shortened = getattr(controller, "shortened_swing", None)   # step timing: the plan runs ahead of schedule
+    landing_of = getattr(controller, "swing_landing", None)    # step adjustment: the swing lands elsewhere
     check = getattr(engine, "check", None)                  # optional engine hooks (engines.base.Engine)
     touch_signal = getattr(engine, "touchdown_signal", None)
     wall0 = time.perf_counter()
@@ -196,7 +199,8 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
                 # an engine that senses touchdown decides it, the geometric rule's travel clause as the guard
                 signal = touch_signal(swing) if touch_signal is not None and swing is not None and hold is None \
                     else None
-                if not (sel.should_switch(t, hip, toe) if signal is None else signal and _travelled(sel, toe)):
+                if not (sel.should_switch(t, hip, toe) if signal is None else
+                        signal and _travelled(sel, toe, None if landing_of is None else landing_of(k))):
                     continue
                 sel.end_phase(t)
                 if sel.is_last:
@@ -212,7 +216,8 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
                         on_landing()
                 nxt = traj.phases[k + 1].swing_foot
                 engine.enter(phase.next)
-                sel.advance(t, None if nxt is None else engine.toe_point(nxt))
+                early = swing is not None and shortened is not None and bool(shortened(k))
+                sel.advance(t, None if nxt is None else engine.toe_point(nxt), early)
         except errors as exc:
             # the loop's own checks, the controller wrapper and falls word their reason whole; any other error
             # (contact, command, linear algebra, an engine's own) gets its time and phase

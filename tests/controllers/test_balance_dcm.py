@@ -12,7 +12,8 @@ import pytest
 from scipy.integrate import quad, solve_ivp
 
 from humanoid_sim.controllers.balance.dcm import ZmpShift, ZmpWindow, capture_point, dcm_acceleration, lipm_omega
-from humanoid_sim.controllers.balance.steps import clamp_offset, predicted_offset
+from humanoid_sim.controllers.balance.steps import StepAdjuster, clamp_offset, predicted_offset
+from humanoid_sim.controllers.balance.swing import swing_targets
 from humanoid_sim.scenario.balance import BalanceSettings, parse_balance
 from humanoid_sim.scenario.fields import ScenarioError
 
@@ -105,6 +106,84 @@ def test_the_offset_keeps_the_dead_band_the_reach_and_no_crossing():
     np.testing.assert_allclose(clamp_offset(np.array([0.0, 0.5]), -1.0, 0.2, s), [0.0, 0.08])
 
 
+def _one_step(settings: BalanceSettings) -> StepAdjuster:
+    """A step adjuster on a one-step plan: single support 0 over [0, 0.7] s, the left foot swinging to (0.3, 0.2)
+    while the right one stands at (0, -0.0); heading +x (forward), left +y."""
+    ph = [SimpleNamespace(t_start=0.0, t_end=0.7, duration=0.7, swing_foot="L"),
+          SimpleNamespace(t_start=0.7, t_end=0.8, duration=0.1, swing_foot=None)]
+    traj = SimpleNamespace(phases=ph, phase_targets=lambda k: SimpleNamespace(swing_toe_end=np.array([0.3, 0.2, 0.0])),
+                           toe_reference=lambda k, t, foot: (np.zeros(3), np.zeros(6), np.eye(3)))
+    return StepAdjuster(traj, ZmpShift(OM), settings)
+
+
+def test_step_timing_lands_when_the_error_still_fits_the_reach():
+    """A forward DCM error whose predicted offset at the planned touchdown (e e^{omega T_r} - dead band) exceeds the
+    0.2 m reach: the swing's clock speeds up so that the foot lands after T = ln((reach + band) / e) / omega, when
+    the pendulum's DCM error (integrated on the stance CoP) has grown to exactly reach + band."""
+    s = BalanceSettings()
+    st = _one_step(s)
+    e = 0.1
+    st.update(0, 0.35, np.array([e, 0.0]), OM, np.eye(3))
+    T = math.log((s.step_forward_m + s.step_deadband_m) / e) / OM
+    assert T > s.step_min_time_s
+    # the closed form of the rate: remaining planned swing over T (round-off only)
+    assert st.clock_rate == pytest.approx(0.35 / T, rel=1e-12)
+    assert st.shortened == 1 and st.runs_ahead(0)
+    t_sw, rate = st.swing_clock(0, 0.35)
+    assert (t_sw, rate) == (0.35, st.clock_rate)
+    st.update(0, 0.36, np.array([e, 0.0]), OM, np.eye(3))           # 10 ms later the swing is 10 ms x rate on
+    assert st.swing_clock(0, 0.36)[0] == pytest.approx(0.36 + 0.01 * (st.clock_rate - 1.0), abs=1e-15)
+    # the pendulum on the stance CoP p = 0 from a DCM error e: after T its DCM error is reach + band
+    c0, cd0 = np.zeros(2), np.array([e * OM, 0.0])
+    sol = solve_ivp(lipm(lambda t, c, cd: np.zeros(2)), (0.0, T), np.concatenate([c0, cd0]), rtol=1e-11, atol=1e-13)
+    # the integrator's tolerance, 1e-11 relative
+    assert capture_point(sol.y[:2, -1], sol.y[2:, -1], OM)[0] == pytest.approx(
+        s.step_forward_m + s.step_deadband_m, abs=1e-8)
+
+
+def test_step_timing_leaves_small_backward_and_disabled_cases_alone():
+    s = BalanceSettings()
+    for err, settings in (((0.02, 0.0), s), ((-0.2, 0.0), s), ((0.0, 0.1), s),
+                          ((0.1, 0.0), BalanceSettings(step_timing=False))):
+        st = _one_step(settings)
+        st.update(0, 0.35, np.array(err), OM, np.eye(3))
+        assert st.clock_rate == 1.0 and not st.runs_ahead(0), err
+    # a huge error: the shortest remaining time and the fastest clock
+    st = _one_step(BalanceSettings(step_max_rate=3.0))
+    st.update(0, 0.35, np.array([1.0, 0.0]), OM, np.eye(3))
+    assert st.clock_rate == pytest.approx(0.35 / s.step_min_time_s, rel=1e-12)
+    st = _one_step(s)
+    st.update(0, 0.05, np.array([1.0, 0.0]), OM, np.eye(3))
+    assert st.clock_rate == s.step_max_rate
+
+
+def test_a_faster_swing_clock_scales_the_path_velocity_and_acceleration():
+    """swing_targets on a swing clock t_sw = t0 + r (t - t0): the toe's velocity is the real-time derivative of its
+    position, r x the path's, and its feed-forward acceleration r^2 x the path's (finite differences of an analytic
+    path)."""
+    def toe(k, t, foot):
+        p = np.array([0.1 * t, 0.2 * t * t, 0.05 * math.sin(3.0 * t)])
+        v = np.array([0.1, 0.4 * t, 0.15 * math.cos(3.0 * t), 0.0, 0.0, 0.0])
+        return p, v, np.eye(3)
+
+    traj = SimpleNamespace(phases=[SimpleNamespace(t_start=0.0, t_end=0.7, duration=0.7, swing_foot="L")],
+                           toe_reference=toe, toe_velocity=lambda k, t, foot: toe(k, t, foot)[1])
+    s = BalanceSettings()
+    r, t0, t = 1.8, 0.2, 0.3
+    def clock(tt):
+        return t0 + r * (tt - t0)
+    _, p, v, _, a, _ = swing_targets(traj, s, 0, t, "L", False, True, clock(t), r)
+    h = 1e-5
+    pos = [swing_targets(traj, s, 0, t + d, "L", False, True, clock(t + d), r)[1] for d in (-h, h)]
+    vel = [swing_targets(traj, s, 0, t + d, "L", False, True, clock(t + d), r)[2][:3] for d in (-h, h)]
+    # central differences of smooth functions: O(h^2) ~ 1e-10 plus round-off / h ~ 1e-11
+    np.testing.assert_allclose(v[:3], (pos[1] - pos[0]) / (2 * h), atol=1e-7)
+    # the feed-forward is itself a central difference over ff_dt_s = 1 ms: O(1e-6) of the analytic value
+    np.testing.assert_allclose(a[:3], (vel[1] - vel[0]) / (2 * h), atol=1e-4)
+    # (the 5 cm sine's second derivative is 0.45 x 1.8^2 = 1.5 m/s^2: the tolerance is 1e-4 of it)
+    assert abs((vel[1] - vel[0])[2] / (2 * h)) > 1.0
+
+
 def test_feedback_settings_are_validated():
     assert BalanceSettings().feedback == "dcm"
     assert parse_balance("f.yaml", {"feedback": "pd", "dcm_gain": 5}).dcm_gain == 5.0
@@ -114,6 +193,10 @@ def test_feedback_settings_are_validated():
         parse_balance("f.yaml", {"dcm_gain": -1})
     with pytest.raises(ScenarioError, match="balance.step_adjustment"):
         parse_balance("f.yaml", {"step_adjustment": 1})
+    with pytest.raises(ScenarioError, match="balance.step_max_rate = 0.5"):
+        parse_balance("f.yaml", {"step_max_rate": 0.5})
+    with pytest.raises(ScenarioError, match="balance.step_timing"):
+        parse_balance("f.yaml", {"step_timing": "yes"})
 
 
 def test_the_com_plan_velocity_is_the_derivative_of_its_position():
@@ -136,20 +219,43 @@ def test_the_com_plan_velocity_is_the_derivative_of_its_position():
         np.testing.assert_allclose(z[1], 0.5 * 0.2 * tt, atol=1e-12)   # linear in a linear signal: exact
 
 
-@pytest.mark.slow
-def test_a_lateral_push_toward_the_stance_foot_is_survived_on_mujoco(hm, tmp_path):
-    """0.3 m/s (16.5 N s on 55 kg) toward the stance foot at mid single support of phase 8 (RFFSSP: toward the
-    right), 0.1 s on the pelvis: the walk completes."""
+def _pushed_walk(hm, tmp_path, impulse: float, direction: float, balance: dict | None = None):
+    """sim3_zmp on MuJoCo with a 0.1 s push on the pelvis at mid single support of phase 8 (RFFSSP: the right foot
+    stands), in the heading frame (0 forward, 90 left: toward the swing foot)."""
     pytest.importorskip("mujoco")
     import yaml
 
     from humanoid_sim.scenario.schema import load_scenario
     from humanoid_sim.sim.simulate import Simulator
 
-    doc = {"base": str(ROOT / "scripts/params/sim3_zmp.yaml"), "name": "push_stance",
-           "disturbances": {"pushes": [{"body": 17, "impulse_Ns": 16.5, "direction_deg": 270, "frame": "heading",
-                                        "start": {"phase": 8, "fraction": 0.5}, "duration_s": 0.1}]}}
-    f = tmp_path / "push.yaml"
+    doc = {"base": str(ROOT / "scripts/params/sim3_zmp.yaml"), "name": "pushed",
+           "disturbances": {"pushes": [{"body": 17, "impulse_Ns": impulse, "direction_deg": direction,
+                                        "frame": "heading", "start": {"phase": 8, "fraction": 0.5},
+                                        "duration_s": 0.1}]}}
+    if balance:
+        doc["balance"] = balance
+    f = tmp_path / f"push_{direction:g}_{impulse:g}.yaml"
     f.write_text(yaml.safe_dump(doc))
-    res = Simulator(hm, load_scenario(f), engine="mujoco").run()
+    return Simulator(hm, load_scenario(f), engine="mujoco").run()
+
+
+@pytest.mark.slow
+def test_a_lateral_push_toward_the_stance_foot_is_survived_on_mujoco(hm, tmp_path):
+    """0.3 m/s (16.5 N s on 55 kg) toward the stance foot: the walk completes."""
+    res = _pushed_walk(hm, tmp_path, 16.5, 270)
     assert res.completed, res.reason
+
+
+@pytest.mark.slow
+def test_a_forward_push_is_survived_by_landing_early_on_mujoco(hm, tmp_path):
+    """0.5 m/s (27.5 N s) forward: the recovery step lands early (step timing) and the walk completes its path
+    ahead of schedule; without step timing the same push fells the robot (the 0.2 m reach is too short for the
+    error grown until the planned touchdown)."""
+    res = _pushed_walk(hm, tmp_path, 27.5, 0)
+    assert res.completed, res.reason
+    # the pushed step (phase 8, index 7) touched down before its planned end, by more than a loop step
+    rec = res.phases[7]
+    assert rec.t_end < rec.nominal_end - 0.05, (rec.t_end, rec.nominal_end)
+    assert res.sim_time < res.extra["nominal_end"]
+    fell = _pushed_walk(hm, tmp_path, 27.5, 0, {"step_timing": False})
+    assert not fell.completed and "fall" in fell.reason, fell.reason

@@ -225,3 +225,16 @@ def test_one_stepping_loop():
         if "should_switch(" in src or ".advance(t" in src:
             users.append(f.relative_to(ROOT / "humanoid_sim").as_posix())
     assert sorted(users) == ["interfaces/selector.py", "sim/loop.py"], users
+
+
+def test_the_touchdown_guard_measures_against_a_moved_landing() -> None:
+    """A swing whose landing the controller moved back (step adjustment): a toe that covered 0.07 m of the 0.316 m
+    planned travel is short of the guard's 30 % against the plan's end point and past it against the moved one."""
+    from humanoid_sim.robot.phases import SwitchThresholds
+    from humanoid_sim.sim.loop import _travelled
+
+    sel = SimpleNamespace(thresholds=SwitchThresholds(), toe_start=np.array([0.159, 0.595, 0.015]),
+                          targets=SimpleNamespace(swing_toe_end=np.array([0.16, 0.911, 0.015])))
+    toe = np.array([0.217, 0.648, 0.015])
+    assert not _travelled(sel, toe)
+    assert _travelled(sel, toe, np.array([0.22, 0.66, 0.015]))

@@ -87,6 +87,7 @@ from humanoid_sim.controllers.balance.estimate import TwistFilter
 from humanoid_sim.controllers.balance.qp import BalanceTables, BoxWrenches, pd, qp_numpy, rot_y
 from humanoid_sim.controllers.balance.stage import FOOT_OF_MAIN, CompiledStage
 from humanoid_sim.controllers.balance.steps import dcm_feedback
+from humanoid_sim.controllers.balance.swing import swing_targets
 from humanoid_sim.controllers.balance.targets import T_HEEL_ANGLE, TARGET_SIZE, Targets, pack_hip, pack_swing
 from humanoid_sim.interfaces.controller import Command, ControlContext, ControllerError, Observation
 from humanoid_sim.kernel.records import State
@@ -212,6 +213,17 @@ class BalanceController:
             out["balance_steps_adjusted"] = self.dcm.steps.adjusted
         return out
 
+    def shortened_swing(self, k: int) -> bool:
+        """Whether single support k's swing was landed early for a robot ahead of its plan (step timing,
+        :meth:`.steps.StepAdjuster.runs_ahead`): the stepping loop then runs the plan's clock from the touchdown."""
+        steps = self.dcm.steps if self.dcm is not None else None
+        return steps is not None and steps.runs_ahead(k)
+
+    def swing_landing(self, k: int) -> np.ndarray | None:
+        """Where single support k's swing lands (world toe point, m) when its foothold moved, else None."""
+        steps = self.dcm.steps if self.dcm is not None else None
+        return None if steps is None else steps.landing(k)
+
     # ------------------------------------------------------------------ one call
     def __call__(self, obs: Observation) -> Command:
         self.calls += 1
@@ -321,38 +333,11 @@ class BalanceController:
             tg.hip = self.dcm.hip_targets(tg.hip, traj.com_targets(k, t), k, t, obs.q, obs.v, kin_data)
         info = traj.phases[k]
         if info.swing_foot is not None:
-            foot = info.swing_foot
-            pt, v6, Rr = traj.toe_reference(k, t, foot)
-            hdt = s.ff_dt_s
-            if own:
-                a_ff = (traj.toe_velocity(k, t + hdt, foot) - traj.toe_velocity(k, t - hdt, foot)) / (2.0 * hdt)
-            else:
-                a_ff = (traj.toe_reference(k, t + hdt, foot)[1] - traj.toe_reference(k, t - hdt, foot)[1]) \
-                    / (2.0 * hdt)
-            # the thesis's toe path starts with a step in acceleration (4-5 m/s^2, 3 rad/s^2 of yaw): its feed-forward
-            # is ramped in over swing_ramp_s (smoothstep), or the swing leg's reaction jolts the stance foot
-            xs = (t - info.t_start) / s.swing_ramp_s
-            if xs < 1.0:
-                a_ff = a_ff * smoothstep(max(xs, 0.0))
-            # aim the last 20 % of the swing landing_depth_m below the path (smoothstep): on real ground the sole
-            # then meets the ground on time and presses it (the path ends with the sole ~0.5 mm above it)
-            u = (t - info.t_start) / info.duration
-            depth = s.landing_depth_m if self._real_ground else 0.0
-            if u > 0.8 and depth > 0.0:
-                x = min(1.0, (u - 0.8) / 0.2)
-                # depth times a smoothstep, written out: depth * smoothstep(x) rounds differently
-                pt = pt - np.array([0.0, 0.0, depth * x * x * (3.0 - 2.0 * x)])
-                v6 = v6.copy()
-                v6[2] -= depth * 6.0 * x * (1.0 - x) / (0.2 * info.duration)
-            late = t - info.t_end
-            if late > 0.0:   # the foot has not landed on schedule (real ground): keep lowering it until it does
-                pt = pt - np.array([0.0, 0.0, s.landing_search_mps * late])
-                v6 = v6.copy()
-                v6[2] -= s.landing_search_mps
-                a_ff = np.zeros(6)
-            tg.swing = (foot, pt, v6, Rr, a_ff, (t - info.t_start) / s.heel_return_time_s)
-            if self.dcm is not None and self.dcm.steps is not None:    # a moved foothold (steps.py)
-                tg.swing = self.dcm.steps.swing_target(k, tg.swing)
+            steps = self.dcm.steps if self.dcm is not None else None
+            t_sw, rate = steps.swing_clock(k, t) if steps is not None else (t, 1.0)
+            tg.swing = swing_targets(traj, s, k, t, info.swing_foot, self._real_ground, own, t_sw, rate)
+            if steps is not None:    # a moved foothold (steps.py)
+                tg.swing = steps.swing_target(k, tg.swing)
         elif phase.is_double_support:
             # the trailing foot, held by its toe: lift its heel (toe-off) so that only the toe part touches, as the
             # contact model (toe weld) assumes; on real ground a flat trailing foot would carry load on its heel

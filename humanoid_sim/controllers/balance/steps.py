@@ -8,7 +8,16 @@ plan to a few mm, keeps its footholds), clamped in the heading frame (x forward,
 to a reach box (``step_forward_m`` ahead, ``step_backward_m`` back, ``step_outward_m`` away from the stance foot)
 and to a collision bound (the feet's toe points at least ``step_min_width_m`` apart sideways: no crossing step).
 The offset is frozen after ``freeze`` of the swing (a target that jumps just before touchdown lands the foot
-tilted), moves at most ``rate`` m/s, and enters the swing foot's target ramped with the swing's progress.
+tilted), moves at most ``max_speed`` m/s, and enters the swing foot's target ramped with the swing's progress.
+
+Step timing (``step_timing``): when the foothold the DCM asks for lies beyond the reach box, the step lands
+earlier instead, while the error is smaller (Khadiv et al. 2016 choose the step's position and duration together,
+in the same exponential of omega T).  The remaining swing time T becomes the longest that brings every component
+within its reach, ln((reach + dead band) / |error|) / omega, but not under ``step_min_time_s``; the swing's path
+then runs on its own clock, ``rate`` = (planned remaining swing) / T times as fast as the plan's (at most
+``step_max_rate``; a rate never decreases within a swing).  The foot touches down early, the double support starts
+at the sensed touchdown and ends on the plan's clock (:class:`humanoid_sim.interfaces.selector.PhaseSelector`),
+so the walk's schedule is kept.
 
 A moved foothold moves the rest of the walk with it: the plan's ZMP is shifted by the offset from the middle of the
 double support that follows the touchdown on, the DCM reference follows by the LIPM's backward recursion
@@ -68,7 +77,7 @@ class StepAdjuster:
 
     freeze = 0.75
     """Swing progress after which the offset is frozen (-)."""
-    rate = 1.5
+    max_speed = 1.5
     """The largest speed of the offset, m/s."""
 
     def __init__(self, traj, shift: ZmpShift, settings) -> None:
@@ -80,6 +89,10 @@ class StepAdjuster:
         self.d = np.zeros(2)              # the applied offset of that single support, world, m
         self.t_last = 0.0
         self.ratio = 0.0                  # the swing's progress at the last call (-)
+        self.ahead = 0.0                  # how far the swing's clock runs ahead of the plan's, s
+        self.clock_rate = 1.0             # d t_sw / dt (step timing), -
+        self.shortened = 0                # single supports whose swing was shortened
+        self.error = (0.0, 0.0)           # the last DCM error (forward, left), heading frame, m
         self.adjusted = 0                 # single supports whose foothold moved
         self.total = np.zeros(2)          # the earlier single supports' offsets, world, m
         self._width_vec = (0.0, 0.0)      # the nominal landing minus the stance toe point, world, m
@@ -89,6 +102,7 @@ class StepAdjuster:
         n = len(ph)
         t0 = ph[k].t_end + (0.5 * ph[k + 1].duration if k + 1 < n else 0.0)
         self.k, self.d, self.t_last = k, np.zeros(2), t
+        self.ahead, self.clock_rate = 0.0, 1.0
         self.total = sum((w.d for w in self.shift.windows), np.zeros(2))
         self.window = ZmpWindow(t0, _NO_END, self.d)
         self.shift.windows.append(self.window)
@@ -109,9 +123,11 @@ class StepAdjuster:
             moved = False
         else:
             moved = self.d[0] != 0.0 or self.d[1] != 0.0
-        u = (t - info.t_start) / info.duration
-        self.ratio = u
         dt, self.t_last = max(t - self.t_last, 0.0), t
+        self.ahead += dt * (self.clock_rate - 1.0)
+        t_sw = t + self.ahead                                       # the swing's clock
+        u = (t_sw - info.t_start) / info.duration
+        self.ratio = u
         if u > self.freeze:
             return
         # scalar arithmetic: this runs at every call of a single support (a 2-vector numpy operation costs ~1 us)
@@ -119,18 +135,62 @@ class StepAdjuster:
         nf = max(math.hypot(fx, fy), 1e-9)
         fx, fy = fx / nf, fy / nf                                   # forward; left is (-fy, fx)
         ex, ey = float(xi_err[0]), float(xi_err[1])
-        want = predicted_offset((fx * ex + fy * ey, fx * ey - fy * ex), omega, info.t_end - t,
-                                self.s.step_deadband_m)
+        e = (fx * ex + fy * ey, fx * ey - fy * ex)
+        self.error = e
+        s = self.s
+        left = max(info.t_end - t_sw, 0.0)                     # the planned swing still to go, s
+        want = predicted_offset(e, omega, left / self.clock_rate, s.step_deadband_m)
         width = abs(fx * self._width_vec[1] - fy * self._width_vec[0])
-        hf, hl = clamp_offset(want, 1.0 if info.swing_foot == "L" else -1.0, width, self.s)
+        sign = 1.0 if info.swing_foot == "L" else -1.0
+        hf, hl = clamp_offset(want, sign, width, s)
+        if s.step_timing and e[0] > 0.0 and left > 0.0 and want[0] - hf > 1e-3:
+            rate = self._timing(e, (hf, hl), omega, left, s)
+            if rate > self.clock_rate:
+                self.clock_rate = rate
+                want = predicted_offset(e, omega, left / rate, s.step_deadband_m)
+                hf, hl = clamp_offset(want, sign, width, s)
         sx, sy = fx * hf - fy * hl - self.d[0], fy * hf + fx * hl - self.d[1]
         n = math.hypot(sx, sy)
-        if n > self.rate * dt:
-            sx, sy = sx * self.rate * dt / n, sy * self.rate * dt / n
+        if n > self.max_speed * dt:
+            sx, sy = sx * self.max_speed * dt / n, sy * self.max_speed * dt / n
         self.d[0] += sx                   # in place: the window holds it
         self.d[1] += sy
         if not moved and (self.d[0] != 0.0 or self.d[1] != 0.0):
             self.adjusted += 1
+
+    def _timing(self, e: tuple[float, float], reach: tuple[float, float], omega: float, left: float, s) -> float:
+        """The swing clock's rate (>= 1) that lands the foot while the error ``e`` (heading frame, m) still fits
+        the ``reach`` (the clamped offset, per component, m): the remaining time ln((|reach| + dead band) / |e|) /
+        omega of the component that needs the shortest, at least ``step_min_time_s``, for ``left`` s of planned
+        swing; at most ``step_max_rate``."""
+        T = min(left / self.clock_rate, math.log(max((reach[0] + s.step_deadband_m) / e[0], 1.0)) / omega)
+        T = max(T, s.step_min_time_s)
+        rate = min(left / T, s.step_max_rate) if T > 0.0 else s.step_max_rate
+        if rate > self.clock_rate and self.clock_rate == 1.0:
+            self.shortened += 1
+        return rate
+
+    def landing(self, k: int) -> np.ndarray | None:
+        """Single support k's landing toe point (3,) m, world: the plan's moved by the offsets so far and this
+        step's; None when nothing moved it (or k is not the step being adjusted)."""
+        if self.k != k or not (np.any(self.d) or np.any(self.total)):
+            return None
+        end = np.array(self.traj.phase_targets(k).swing_toe_end, dtype=float)
+        end[:2] += self.total + self.d
+        return end
+
+    def runs_ahead(self, k: int) -> bool:
+        """Whether the plan's clock should jump to the touchdown that ends single support k: its swing was
+        shortened and the robot is ahead of its plan (a forward DCM error: the plan catches up with it; a robot
+        pushed back lands early and the plan waits for it instead)."""
+        return self.k == k and self.clock_rate > 1.0
+
+    def swing_clock(self, k: int, t: float) -> tuple[float, float]:
+        """(t_sw, rate): where single support k's swing is on its planned path (s, the plan's time) and how fast
+        that clock runs (-); (t, 1) when the swing runs on the plan's clock."""
+        if self.k != k:
+            return t, 1.0
+        return t + self.ahead, self.clock_rate
 
     def swing_target(self, k: int, swing: tuple) -> tuple:
         """Single support k's swing targets (``Targets.swing``) with the toe point moved by the offsets (the earlier
