@@ -121,9 +121,9 @@ class Controller(Protocol):
     thesis and balance controllers, as the thesis's Simulink model evaluates its controller).
 
     Optional hooks the stepping loop calls when present: ``landing()`` after a touchdown taught the trajectory the
-    actual landing (drop cached references); ``shortened_swing(k) -> bool`` at the touchdown ending single support
-    k: True when the controller landed that swing early on purpose (step timing), and the plan's clock then jumps
-    to the double support's start (:meth:`humanoid_sim.interfaces.selector.PhaseSelector.advance`);
+    actual landing (drop cached references); ``plan_jump(k) -> float`` at the touchdown ending single support k:
+    how far (s, >= 0) the plan's clock moves on toward the double support's start when the controller landed that
+    swing early on purpose (step timing; :meth:`humanoid_sim.interfaces.selector.PhaseSelector.advance`);
     ``swing_landing(k) -> ndarray | None``: where (world toe point, m) the controller lands single support k's swing
     when it moved the foothold, so that a touchdown sensed there counts (the travel guard of 6.1.1.1 measures
     against it), or None for the plan's."""

@@ -128,8 +128,8 @@ class PhaseSelector:
         clock (the trajectory asks for it), else section 6.1.1's hip-distance / overtime rule."""
         self.plan_delay = 0.0
         """How much later than planned the latest touchdown so far came, s: the plan's clock is t - plan_delay (it
-        waits for a late touchdown; it runs ahead only after a swing the controller shortened on purpose, see
-        :meth:`advance`, and plan_delay is then < 0).  Only touchdowns count: a double support ends on the
+        waits for a late touchdown; it moves on after a swing the controller shortened on purpose, see
+        :meth:`advance`, and plan_delay may then be < 0).  Only touchdowns count: a double support ends on the
         step grid, up to half a step after its planned end, and counting that would ratchet the delay up by a few
         ms at every step (measured: 63 ms over the 60 s walk)."""
 
@@ -238,15 +238,16 @@ class PhaseSelector:
     def end_phase(self, t: float) -> None:
         self.records[-1].t_end = t
 
-    def advance(self, t: float, toe_start: np.ndarray | None, early: bool = False) -> None:
-        """Start the next phase at time t; ``toe_start``: its swing toe point (SSP) or None.  ``early``: the
-        controller shortened the swing that just touched down (step timing): the plan's clock jumps to the double
-        support's start, so the walk runs ahead of its schedule by the time gained instead of waiting for it."""
+    def advance(self, t: float, toe_start: np.ndarray | None, jump: float = 0.0) -> None:
+        """Start the next phase at time t; ``toe_start``: its swing toe point (SSP) or None.  ``jump`` (s, >= 0):
+        the controller shortened the swing that just touched down (step timing) and asks the plan's clock to move
+        on by up to that much toward the double support's start, so that the walk runs ahead of its schedule
+        instead of waiting for it."""
         self.k += 1
         self.phase = self.phase.next
         nxt = self.traj.phases[self.k]
         if self.phase.is_double_support:   # started by a sensed touchdown (a double support ends on schedule)
-            self.plan_delay = t - nxt.t_start if early else max(self.plan_delay, t - nxt.t_start)
+            self.plan_delay = max(self.plan_delay - max(jump, 0.0), t - nxt.t_start)
         self.records.append(PhaseRecord(self.k, self.phase.value, t, nominal_start=nxt.t_start,
                                         nominal_end=nxt.t_end))
         self.targets = self.traj.phase_targets(self.k)

@@ -171,7 +171,7 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
     status, error, trace_text = RunStatus.FAILED, None, None
     steps = 0
     on_landing = getattr(controller, "landing", None)
-    shortened = getattr(controller, "shortened_swing", None)   # step timing: the plan runs ahead of schedule
+    plan_jump = getattr(controller, "plan_jump", None)          # step timing: the plan runs ahead of schedule
     landing_of = getattr(controller, "swing_landing", None)    # step adjustment: the swing lands elsewhere
     check = getattr(engine, "check", None)                  # optional engine hooks (engines.base.Engine)
     touch_signal = getattr(engine, "touchdown_signal", None)
@@ -216,8 +216,8 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
                         on_landing()
                 nxt = traj.phases[k + 1].swing_foot
                 engine.enter(phase.next)
-                early = swing is not None and shortened is not None and bool(shortened(k))
-                sel.advance(t, None if nxt is None else engine.toe_point(nxt), early)
+                jump = float(plan_jump(k)) if swing is not None and plan_jump is not None else 0.0
+                sel.advance(t, None if nxt is None else engine.toe_point(nxt), jump)
         except errors as exc:
             # the loop's own checks, the controller wrapper and falls word their reason whole; any other error
             # (contact, command, linear algebra, an engine's own) gets its time and phase

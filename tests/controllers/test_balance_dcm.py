@@ -106,12 +106,13 @@ def test_the_offset_keeps_the_dead_band_the_reach_and_no_crossing():
     np.testing.assert_allclose(clamp_offset(np.array([0.0, 0.5]), -1.0, 0.2, s), [0.0, 0.08])
 
 
-def _one_step(settings: BalanceSettings) -> StepAdjuster:
-    """A step adjuster on a one-step plan: single support 0 over [0, 0.7] s, the left foot swinging to (0.3, 0.2)
-    while the right one stands at (0, -0.0); heading +x (forward), left +y."""
+def _one_step(settings: BalanceSettings, forward: float = 0.3) -> StepAdjuster:
+    """A step adjuster on a one-step plan: single support 0 over [0, 0.7] s and a 0.1 s double support, the left
+    foot swinging to (``forward``, 0.2) while the right one stands at the origin; heading +x (forward), left +y."""
     ph = [SimpleNamespace(t_start=0.0, t_end=0.7, duration=0.7, swing_foot="L"),
           SimpleNamespace(t_start=0.7, t_end=0.8, duration=0.1, swing_foot=None)]
-    traj = SimpleNamespace(phases=ph, phase_targets=lambda k: SimpleNamespace(swing_toe_end=np.array([0.3, 0.2, 0.0])),
+    end = np.array([forward, 0.2, 0.0])
+    traj = SimpleNamespace(phases=ph, phase_targets=lambda k: SimpleNamespace(swing_toe_end=end),
                            toe_reference=lambda k, t, foot: (np.zeros(3), np.zeros(6), np.eye(3)))
     return StepAdjuster(traj, ZmpShift(OM), settings)
 
@@ -128,7 +129,7 @@ def test_step_timing_lands_when_the_error_still_fits_the_reach():
     assert T > s.step_min_time_s
     # the closed form of the rate: remaining planned swing over T (round-off only)
     assert st.clock_rate == pytest.approx(0.35 / T, rel=1e-12)
-    assert st.shortened == 1 and st.runs_ahead(0)
+    assert st.shortened == 1 and st.plan_jump(0) == s.step_max_jump_s and st.plan_jump(1) == 0.0
     t_sw, rate = st.swing_clock(0, 0.35)
     assert (t_sw, rate) == (0.35, st.clock_rate)
     st.update(0, 0.36, np.array([e, 0.0]), OM, np.eye(3))           # 10 ms later the swing is 10 ms x rate on
@@ -147,14 +148,22 @@ def test_step_timing_leaves_small_backward_and_disabled_cases_alone():
                           ((0.1, 0.0), BalanceSettings(step_timing=False))):
         st = _one_step(settings)
         st.update(0, 0.35, np.array(err), OM, np.eye(3))
-        assert st.clock_rate == 1.0 and not st.runs_ahead(0), err
-    # a huge error: the shortest remaining time and the fastest clock
+        assert st.clock_rate == 1.0 and st.plan_jump(0) == 0.0, err
+    # before step_timing_after of the swing: nothing
+    st = _one_step(BalanceSettings(step_timing_after=0.4))
+    st.update(0, 0.2, np.array([1.0, 0.0]), OM, np.eye(3))
+    assert 0.2 / 0.7 < 0.4 and st.clock_rate == 1.0
+    # a huge error: the shortest remaining time, then the fastest clock
     st = _one_step(BalanceSettings(step_max_rate=3.0))
     st.update(0, 0.35, np.array([1.0, 0.0]), OM, np.eye(3))
     assert st.clock_rate == pytest.approx(0.35 / s.step_min_time_s, rel=1e-12)
     st = _one_step(s)
-    st.update(0, 0.05, np.array([1.0, 0.0]), OM, np.eye(3))
-    assert st.clock_rate == s.step_max_rate
+    st.update(0, 0.3, np.array([1.0, 0.0]), OM, np.eye(3))
+    assert 0.4 / s.step_min_time_s > s.step_max_rate and st.clock_rate == s.step_max_rate
+    # a fast plan (0.9 m in 0.8 s) catches up with a 0.1 m error in 0.089 s: no more time is gained than that
+    st = _one_step(s, forward=0.9)
+    st.update(0, 0.35, np.array([0.1, 0.0]), OM, np.eye(3))
+    assert st.clock_rate == pytest.approx(0.35 / (0.35 - 0.1 / (0.9 / 0.8)), rel=1e-12)
 
 
 def test_a_faster_swing_clock_scales_the_path_velocity_and_acceleration():

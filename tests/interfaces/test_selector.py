@@ -110,24 +110,28 @@ def test_messages_name_the_joint_and_its_body(hm):
 
 
 def test_an_early_touchdown_the_controller_planned_runs_the_plan_ahead(sel):
-    """``advance(..., early=True)`` (a swing the controller shortened): the plan's clock jumps to the double
-    support's start, plan_delay < 0 by the time gained; a later late touchdown delays it again.  A double support on
-    schedule that started early may last until its planned end without tripping the overtime check."""
+    """``advance(..., jump)`` (a swing the controller shortened): the plan's clock moves on by up to ``jump``
+    toward the double support's start (plan_delay < 0), no further; a later late touchdown delays it again.  A
+    double support on schedule that started early may last until its planned end without tripping the overtime
+    check."""
     ph = sel.traj.phases
-    sel.advance(ph[1].t_start - 0.13, None, early=True)
+    sel.advance(ph[1].t_start - 0.13, None, jump=0.5)        # the whole 0.13 s, not beyond the start
     assert sel.plan_delay == pytest.approx(-0.13, abs=1e-12)
-    sel.advance(ph[2].t_start + 0.05, None)          # an SSP start counts for nothing
-    sel.advance(ph[3].t_start + 0.02, None)          # a late touchdown: the clock waits again
+    sel.advance(ph[2].t_start, None)
+    sel.advance(ph[3].t_start - 0.13 - 0.2, None, jump=0.1)  # 0.2 s early again: the clock moves on 0.1 s
+    assert sel.plan_delay == pytest.approx(-0.23, abs=1e-12)
+    sel.advance(ph[4].t_start + 0.05, None)          # an SSP start counts for nothing
+    sel.advance(ph[5].t_start + 0.02, None)          # a late touchdown: the clock waits again
     assert sel.plan_delay == pytest.approx(0.02, abs=1e-12)
-    sel.advance(ph[4].t_start, None)
-    sel.advance(ph[5].t_start - 0.2, None)           # early, not planned: the plan waits (delay kept)
+    sel.advance(ph[6].t_start, None)
+    sel.advance(ph[7].t_start - 0.2, None)           # early, not planned: the plan waits (delay kept)
     assert sel.plan_delay == pytest.approx(0.02, abs=1e-12)
     sel.dsp_on_schedule = True
     ok = np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 0.9])
     # 2 x the phase's own duration has passed, but its planned end (plan clock) is later: no overtime yet
-    t_dsp = ph[5].duration
+    t_dsp = ph[7].duration
     assert 0.2 + t_dsp > 2.0 * t_dsp > 0.2
-    sel.check_state(ph[5].t_start - 0.2 + 2.0 * t_dsp + 1e-3, *ok)
+    sel.check_state(ph[7].t_start - 0.2 + 2.0 * t_dsp + 1e-3, *ok)
     # the planned end: 0.2 s early plus the 0.02 s delay plus the phase, times max_phase_overtime 2
-    with pytest.raises(SimulationError, match=r"has lasted .* nominal 0.353 s"):
-        sel.check_state(ph[5].t_start - 0.2 + 2.0 * (0.2 + t_dsp + 0.02) + 1e-3, *ok)
+    with pytest.raises(SimulationError, match=rf"has lasted .* nominal {0.2 + 0.02 + t_dsp:.3f} s"):
+        sel.check_state(ph[7].t_start - 0.2 + 2.0 * (0.2 + t_dsp + 0.02) + 1e-3, *ok)

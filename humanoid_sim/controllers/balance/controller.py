@@ -213,11 +213,11 @@ class BalanceController:
             out["balance_steps_adjusted"] = self.dcm.steps.adjusted
         return out
 
-    def shortened_swing(self, k: int) -> bool:
-        """Whether single support k's swing was landed early for a robot ahead of its plan (step timing,
-        :meth:`.steps.StepAdjuster.runs_ahead`): the stepping loop then runs the plan's clock from the touchdown."""
+    def plan_jump(self, k: int) -> float:
+        """How far (s) the plan's clock moves on at the touchdown ending single support k: the time step timing
+        gained in that swing, up to ``step_max_jump_s`` (:meth:`.steps.StepAdjuster.plan_jump`); 0 without it."""
         steps = self.dcm.steps if self.dcm is not None else None
-        return steps is not None and steps.runs_ahead(k)
+        return 0.0 if steps is None else steps.plan_jump(k)
 
     def swing_landing(self, k: int) -> np.ndarray | None:
         """Where single support k's swing lands (world toe point, m) when its foothold moved, else None."""

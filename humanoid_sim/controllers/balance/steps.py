@@ -10,14 +10,21 @@ and to a collision bound (the feet's toe points at least ``step_min_width_m`` ap
 The offset is frozen after ``freeze`` of the swing (a target that jumps just before touchdown lands the foot
 tilted), moves at most ``max_speed`` m/s, and enters the swing foot's target ramped with the swing's progress.
 
-Step timing (``step_timing``): when the foothold the DCM asks for lies beyond the reach box, the step lands
-earlier instead, while the error is smaller (Khadiv et al. 2016 choose the step's position and duration together,
-in the same exponential of omega T).  The remaining swing time T becomes the longest that brings every component
-within its reach, ln((reach + dead band) / |error|) / omega, but not under ``step_min_time_s``; the swing's path
-then runs on its own clock, ``rate`` = (planned remaining swing) / T times as fast as the plan's (at most
-``step_max_rate``; a rate never decreases within a swing).  The foot touches down early, the double support starts
-at the sensed touchdown and ends on the plan's clock (:class:`humanoid_sim.interfaces.selector.PhaseSelector`),
-so the walk's schedule is kept.
+Step timing (``step_timing``): when the forward foothold the DCM asks for (the robot ahead of its plan) lies
+beyond the reach, the step lands earlier instead, while the error is smaller (Khadiv et al. 2016 choose a step's
+position and duration together, in the same exponential of omega T).  The remaining swing time T becomes the
+longest that brings the forward offset within its reach, ln((reach + dead band) / error) / omega, but:
+- not under ``step_min_time_s``;
+- gaining no more time than the plan needs to catch up with the robot (error / the plan's forward speed);
+- only from ``step_timing_after`` of the swing on.
+The swing's path then runs on its own clock, ``rate`` = (planned remaining swing) / T times as fast as the plan's
+(at most ``step_max_rate``; a rate never decreases within a swing).  At the early touchdown the plan's clock moves
+on by at most ``step_max_jump_s`` toward the double support's start
+(:meth:`humanoid_sim.interfaces.selector.PhaseSelector.advance`) and waits out the rest, as for any early
+touchdown.  Why the bound: a plan that jumps the whole time gained (up to 0.4 s when a swing is shortened from
+its start) puts its lateral sway out of phase with the robot's, which the next steps could not absorb; a plan that
+never moves on leaves a robot pushed forward too far ahead of it (measured in the push benchmark:
+``docs/notes/2026-11-27-step-timing.md``).
 
 A moved foothold moves the rest of the walk with it: the plan's ZMP is shifted by the offset from the middle of the
 double support that follows the touchdown on, the DCM reference follows by the LIPM's backward recursion
@@ -92,7 +99,6 @@ class StepAdjuster:
         self.ahead = 0.0                  # how far the swing's clock runs ahead of the plan's, s
         self.clock_rate = 1.0             # d t_sw / dt (step timing), -
         self.shortened = 0                # single supports whose swing was shortened
-        self.error = (0.0, 0.0)           # the last DCM error (forward, left), heading frame, m
         self.adjusted = 0                 # single supports whose foothold moved
         self.total = np.zeros(2)          # the earlier single supports' offsets, world, m
         self._width_vec = (0.0, 0.0)      # the nominal landing minus the stance toe point, world, m
@@ -136,15 +142,17 @@ class StepAdjuster:
         fx, fy = fx / nf, fy / nf                                   # forward; left is (-fy, fx)
         ex, ey = float(xi_err[0]), float(xi_err[1])
         e = (fx * ex + fy * ey, fx * ey - fy * ex)
-        self.error = e
         s = self.s
         left = max(info.t_end - t_sw, 0.0)                     # the planned swing still to go, s
         want = predicted_offset(e, omega, left / self.clock_rate, s.step_deadband_m)
         width = abs(fx * self._width_vec[1] - fy * self._width_vec[0])
         sign = 1.0 if info.swing_foot == "L" else -1.0
         hf, hl = clamp_offset(want, sign, width, s)
-        if s.step_timing and e[0] > 0.0 and left > 0.0 and want[0] - hf > 1e-3:
-            rate = self._timing(e, (hf, hl), omega, left, s)
+        if s.step_timing and e[0] > 0.0 and left > 0.0 and want[0] - hf > 1e-3 and \
+                u >= s.step_timing_after:
+            period = info.duration + (self.traj.phases[k + 1].duration if k + 1 < len(self.traj.phases) else 0.0)
+            speed = max(fx * self._width_vec[0] + fy * self._width_vec[1], 0.0) / period   # the plan's, m/s
+            rate = self._timing(e, (hf, hl), omega, left, speed, s)
             if rate > self.clock_rate:
                 self.clock_rate = rate
                 want = predicted_offset(e, omega, left / rate, s.step_deadband_m)
@@ -158,13 +166,16 @@ class StepAdjuster:
         if not moved and (self.d[0] != 0.0 or self.d[1] != 0.0):
             self.adjusted += 1
 
-    def _timing(self, e: tuple[float, float], reach: tuple[float, float], omega: float, left: float, s) -> float:
-        """The swing clock's rate (>= 1) that lands the foot while the error ``e`` (heading frame, m) still fits
-        the ``reach`` (the clamped offset, per component, m): the remaining time ln((|reach| + dead band) / |e|) /
-        omega of the component that needs the shortest, at least ``step_min_time_s``, for ``left`` s of planned
-        swing; at most ``step_max_rate``."""
+    def _timing(self, e: tuple[float, float], reach: tuple[float, float], omega: float, left: float, speed: float,
+                s) -> float:
+        """The swing clock's rate (>= 1) that lands the foot while the forward error ``e[0]`` (m) still fits the
+        forward ``reach[0]`` (m): the remaining time ln((reach + dead band) / e) / omega, at least
+        ``step_min_time_s``, for ``left`` s of planned swing, at most ``step_max_rate``; and no more time gained
+        than the plan needs to catch up with the robot, e / ``speed`` (the plan's mean forward speed, m/s)."""
         T = min(left / self.clock_rate, math.log(max((reach[0] + s.step_deadband_m) / e[0], 1.0)) / omega)
         T = max(T, s.step_min_time_s)
+        if speed > 1e-6:        # gained so far (ahead) plus left - T: at most e / speed
+            T = max(T, left - max(e[0] / speed - self.ahead, 0.0))
         rate = min(left / T, s.step_max_rate) if T > 0.0 else s.step_max_rate
         if rate > self.clock_rate and self.clock_rate == 1.0:
             self.shortened += 1
@@ -179,11 +190,13 @@ class StepAdjuster:
         end[:2] += self.total + self.d
         return end
 
-    def runs_ahead(self, k: int) -> bool:
-        """Whether the plan's clock should jump to the touchdown that ends single support k: its swing was
-        shortened and the robot is ahead of its plan (a forward DCM error: the plan catches up with it; a robot
-        pushed back lands early and the plan waits for it instead)."""
-        return self.k == k and self.clock_rate > 1.0
+    def plan_jump(self, k: int) -> float:
+        """How far (s) the plan's clock moves on at the touchdown ending single support k: the time its shortened
+        swing gained (the plan's remaining swing at touchdown), up to ``step_max_jump_s``; the rest of an early
+        touchdown the plan waits for, as for any early touchdown."""
+        if self.k != k or self.clock_rate == 1.0:
+            return 0.0
+        return self.s.step_max_jump_s
 
     def swing_clock(self, k: int, t: float) -> tuple[float, float]:
         """(t_sw, rate): where single support k's swing is on its planned path (s, the plan's time) and how fast
