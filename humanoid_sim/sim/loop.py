@@ -130,6 +130,39 @@ class _Driven:
         return self.drive(self.checked(obs), obs)
 
 
+def _call_hook(name: str, hook: str, fn: Callable[[int], object], k: int, t: float) -> object:
+    """``fn(k)``, a controller's optional hook, its failure a :class:`ControllerError` naming the controller."""
+    try:
+        return fn(k)
+    except RUN_ERRORS + (KeyboardInterrupt,):
+        raise
+    except Exception as exc:
+        raise ControllerError(f"controller {name!r}: {hook} raised {type(exc).__name__} at t = {t:.3f} s: "
+                              f"{exc}") from exc
+
+
+def _plan_jump(name: str, fn: Callable[[int], object], k: int, t: float) -> float:
+    """The controller's ``plan_jump(k)``: a time >= 0 s, or a :class:`ControllerError` saying what it returned."""
+    out = _call_hook(name, "plan_jump", fn, k, t)
+    if isinstance(out, (int, float, np.floating, np.integer)) and not isinstance(out, bool) and \
+            math.isfinite(out) and out >= 0:
+        return float(out)
+    raise ControllerError(f"controller {name!r}: plan_jump returned {out!r} at t = {t:.3f} s, expected a time "
+                          ">= 0 s")
+
+
+def _swing_landing(name: str, fn: Callable[[int], object], k: int, t: float) -> np.ndarray | None:
+    """The controller's ``swing_landing(k)``: None or a world point (3,) m, or a :class:`ControllerError`."""
+    out = _call_hook(name, "swing_landing", fn, k, t)
+    if out is None:
+        return None
+    arr = np.asarray(out, dtype=float) if isinstance(out, (np.ndarray, list, tuple)) else None
+    if arr is None or arr.shape != (3,) or not np.isfinite(arr).all():
+        raise ControllerError(f"controller {name!r}: swing_landing returned {out!r} at t = {t:.3f} s, expected "
+                              "None or a world point of 3 finite numbers (m)")
+    return arr
+
+
 def _travelled(sel: PhaseSelector, toe: np.ndarray, end: np.ndarray | None = None) -> bool:
     """The guard of a sensed touchdown: the swing toe has covered more than the geometric rule's share of its
     planned horizontal travel (6.1.1.1's second clause; its height clause is what the sensed contact replaces).
@@ -199,8 +232,9 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
                 # an engine that senses touchdown decides it, the geometric rule's travel clause as the guard
                 signal = touch_signal(swing) if touch_signal is not None and swing is not None and hold is None \
                     else None
-                if not (sel.should_switch(t, hip, toe) if signal is None else
-                        signal and _travelled(sel, toe, None if landing_of is None else landing_of(k))):
+                if not (sel.should_switch(t, hip, toe) if signal is None else signal and _travelled(
+                        sel, toe, None if landing_of is None else
+                        _swing_landing(checked.name, landing_of, k, t))):
                     continue
                 sel.end_phase(t)
                 if sel.is_last:
@@ -216,7 +250,8 @@ def run(engine: Engine, controller: Controller, traj: ReferenceTrajectory, scena
                         on_landing()
                 nxt = traj.phases[k + 1].swing_foot
                 engine.enter(phase.next)
-                jump = float(plan_jump(k)) if swing is not None and plan_jump is not None else 0.0
+                jump = _plan_jump(checked.name, plan_jump, k, t) if swing is not None and plan_jump is not None \
+                    else 0.0
                 sel.advance(t, None if nxt is None else engine.toe_point(nxt), jump)
         except errors as exc:
             # the loop's own checks, the controller wrapper and falls word their reason whole; any other error

@@ -3,6 +3,7 @@ time, reason and phase change below is known by hand."""
 
 from __future__ import annotations
 
+import re
 from types import SimpleNamespace
 
 import numpy as np
@@ -238,3 +239,27 @@ def test_the_touchdown_guard_measures_against_a_moved_landing() -> None:
     toe = np.array([0.217, 0.648, 0.015])
     assert not _travelled(sel, toe)
     assert _travelled(sel, toe, np.array([0.22, 0.66, 0.015]))
+
+
+@pytest.mark.parametrize("hook, value, expected", [
+    ("plan_jump", float("nan"), r"plan_jump returned nan at t = 0.020 s, expected a time >= 0 s"),
+    ("plan_jump", -0.1, r"plan_jump returned -0.1 .* expected a time >= 0 s"),
+    ("swing_landing", (1.0, 2.0), r"swing_landing returned \(1.0, 2.0\) .* expected None or a world point"),
+    ("swing_landing", ZeroDivisionError("boom"), r"swing_landing raised ZeroDivisionError at t = 0.010 s: boom"),
+])
+def test_a_bad_hook_answer_ends_the_run_naming_the_controller(sc, traj, hook, value, expected) -> None:
+    """A controller's optional hooks (plan_jump, swing_landing) answer at a sensed touchdown: a wrong answer or a
+    failure ends the run with a ControllerError naming the controller and the hook, not a corrupt clock."""
+    h = sc.simulation.step_s
+    ctrl = Constant()
+
+    def answer(k):
+        if isinstance(value, BaseException):
+            raise value
+        return value
+
+    setattr(ctrl, hook, answer)
+    eng = ScriptedEngine(land_after=2, signal=lambda foot: True)
+    res = run(eng, ctrl, traj, sc, np.zeros(33), t_end=4 * h)
+    assert res.status is RunStatus.FAILED and "controller 'constant'" in res.reason, res.reason
+    assert re.search(expected, res.reason), res.reason
