@@ -209,20 +209,23 @@ class BalanceController:
         """For the run's summary: calls, and calls whose contact constraints had to be relaxed."""
         out = {"balance_calls": self.calls, "balance_relaxed_cop": self.relaxed_cop,
                "balance_relaxed_all": self.relaxed_all}
-        if self.dcm is not None and self.dcm.steps is not None:
-            out["balance_steps_adjusted"] = self.dcm.steps.adjusted
+        if self._steps is not None:
+            out["balance_steps_adjusted"] = self._steps.adjusted
         return out
+
+    @property
+    def _steps(self):
+        """The DCM feedback's step adjustment (:class:`.steps.StepAdjuster`), or None (the hip PD, or none)."""
+        return self.dcm.steps if self.dcm is not None else None
 
     def plan_jump(self, k: int) -> float:
         """How far (s) the plan's clock moves on at the touchdown ending single support k: the time step timing
         gained in that swing, up to ``step_max_jump_s`` (:meth:`.steps.StepAdjuster.plan_jump`); 0 without it."""
-        steps = self.dcm.steps if self.dcm is not None else None
-        return 0.0 if steps is None else steps.plan_jump(k)
+        return 0.0 if self._steps is None else self._steps.plan_jump(k)
 
     def swing_landing(self, k: int) -> np.ndarray | None:
         """Where single support k's swing lands (world toe point, m) when its foothold moved, else None."""
-        steps = self.dcm.steps if self.dcm is not None else None
-        return None if steps is None else steps.landing(k)
+        return None if self._steps is None else self._steps.landing(k)
 
     # ------------------------------------------------------------------ one call
     def __call__(self, obs: Observation) -> Command:
@@ -333,7 +336,7 @@ class BalanceController:
             tg.hip = self.dcm.hip_targets(tg.hip, traj.com_targets(k, t), k, t, obs.q, obs.v, kin_data)
         info = traj.phases[k]
         if info.swing_foot is not None:
-            steps = self.dcm.steps if self.dcm is not None else None
+            steps = self._steps
             t_sw, rate = steps.swing_clock(k, t) if steps is not None else (t, 1.0)
             tg.swing = swing_targets(traj, s, k, t, info.swing_foot, self._real_ground, own, t_sw, rate)
             if steps is not None:    # a moved foothold (steps.py)

@@ -102,6 +102,7 @@ class StepAdjuster:
         self.adjusted = 0                 # single supports whose foothold moved
         self.total = np.zeros(2)          # the earlier single supports' offsets, world, m
         self._width_vec = (0.0, 0.0)      # the nominal landing minus the stance toe point, world, m
+        self._end = np.zeros(3)           # the nominal landing's toe point, world, m
 
     def _start(self, k: int, t: float) -> None:
         ph = self.traj.phases
@@ -114,9 +115,9 @@ class StepAdjuster:
         self.shift.windows.append(self.window)
         # the nominal landing's and the stance foot's toe points, world (the stance foot stays during the swing)
         swing = ph[k].swing_foot
-        landing = np.asarray(self.traj.phase_targets(k).swing_toe_end, dtype=float)[:2]
+        self._end = np.array(self.traj.phase_targets(k).swing_toe_end, dtype=float)
         stance = np.asarray(self.traj.toe_reference(k, t, "R" if swing == "L" else "L")[0], dtype=float)[:2]
-        self._width_vec = (float(landing[0] - stance[0]), float(landing[1] - stance[1]))
+        self._width_vec = (float(self._end[0] - stance[0]), float(self._end[1] - stance[1]))
 
     def update(self, k: int, t: float, xi_err: np.ndarray, omega: float, R_heading: np.ndarray) -> None:
         """One call in single support k at plan time t: the DCM error ``xi_err`` (2,) m against the plan shifted by
@@ -186,7 +187,7 @@ class StepAdjuster:
         step's; None when nothing moved it (or k is not the step being adjusted)."""
         if self.k != k or not (np.any(self.d) or np.any(self.total)):
             return None
-        end = np.array(self.traj.phase_targets(k).swing_toe_end, dtype=float)
+        end = self._end.copy()
         end[:2] += self.total + self.d
         return end
 
