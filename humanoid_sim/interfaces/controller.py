@@ -70,7 +70,11 @@ class Observation:
     much later than planned the latest touchdown so far came (s, >= 0; the phase selector's
     :attr:`~humanoid_sim.interfaces.selector.PhaseSelector.plan_delay`): the plan's clock is ``t - plan_delay``, the
     time at
-    which a controller that waits for late touchdowns reads its references.
+    which a controller that waits for late touchdowns reads its references; foot_wrenches: on engines whose contacts
+    are physical (MuJoCo), what the feet's force-torque sensors measured over the last control period (its mean):
+    (2, 6), rows R and L, each the ground's force on the foot (N) and its moment about the world origin (N m), world
+    frame; None on engines that impose their contacts (welds: the controller solves for the multipliers itself) and
+    before the first period.
     """
 
     t: float
@@ -81,6 +85,7 @@ class Observation:
     anchors: Anchors | None
     stage: int = 0
     plan_delay: float = 0.0
+    foot_wrenches: np.ndarray | None = None
 
 
 @dataclass

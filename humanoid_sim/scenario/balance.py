@@ -18,7 +18,8 @@ FEEDBACKS = ("dcm", "pd")
 BASE_VELOCITIES = ("filtered", "measured")
 """The values of ``BalanceSettings.base_velocity``."""
 _CHOICES = ("feedback", "base_velocity")
-_FLAGS = ("time_shift", "lazy_torque_limits", "step_adjustment", "step_timing")
+_FLAGS = ("time_shift", "lazy_torque_limits", "step_adjustment", "step_timing", "external_force",
+          "footholds")
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,19 @@ class BalanceSettings:
             cut-off ``base_velocity_filter_hz``: humanoid_sim.controllers.balance.estimate) or ``measured`` (as
             sensed).
         base_velocity_filter_hz: that filter's cut-off, Hz.
+        external_force: with ``feedback: dcm``, on real ground, estimate the horizontal force the model does not
+            know (a slope, a steady push) from the feet's force sensors and the CoM's momentum, and lean the CoM
+            against it (humanoid_sim.controllers.balance.force).
+        external_force_filter_hz: that estimate's cut-off, Hz.
+        lean_max_m: the largest lean of the CoM against that force, m (also what tells a push from a slope: an
+            estimate beyond lean_max_m m omega^2 is taken for a push, whose impulse the estimate drops).
+        footholds: on real ground, find the part of a flat stance foot's sole the ground supports (from its turn and
+            its sensed CoP) and keep the CoP there (humanoid_sim.controllers.balance.foothold).
+        foothold_tilt_rad: the turn of a stance foot from its anchor, about a sole axis, that reveals a partial
+            foothold, rad.
+        foothold_cut_margin_m: how far inside a cut the CoP stays, m.
+        foothold_min_width_m: the least width a cut leaves on either side of it, m.
+        foothold_toe_bent_rad: the toe-joint angle at anchoring beyond which a foot's toe box carries no load, rad.
     """
 
     hip_omega: float = 12.0
@@ -121,6 +135,14 @@ class BalanceSettings:
     step_max_rate: float = 2.5
     base_velocity: str = "filtered"
     base_velocity_filter_hz: float = 30.0
+    external_force: bool = True
+    external_force_filter_hz: float = 0.5
+    lean_max_m: float = 0.08
+    footholds: bool = True
+    foothold_tilt_rad: float = 0.026
+    foothold_cut_margin_m: float = 0.005
+    foothold_min_width_m: float = 0.015
+    foothold_toe_bent_rad: float = 0.05
 
     def __post_init__(self) -> None:
         if self.feedback not in FEEDBACKS:

@@ -82,8 +82,11 @@ import numpy as np
 import pinocchio as pin
 
 from humanoid_sim import kernel as _kernel
+from humanoid_sim.controllers.balance.boxes import SoleBoxes
 from humanoid_sim.controllers.balance.compiled import balance_finish, balance_stage
 from humanoid_sim.controllers.balance.estimate import TwistFilter
+from humanoid_sim.controllers.balance.foothold import FootholdTracker
+from humanoid_sim.controllers.balance.force import ForceEstimate
 from humanoid_sim.controllers.balance.qp import BalanceTables, BoxWrenches, pd, qp_numpy, rot_y
 from humanoid_sim.controllers.balance.stage import FOOT_OF_MAIN, CompiledStage
 from humanoid_sim.controllers.balance.steps import dcm_feedback
@@ -159,11 +162,6 @@ class BalanceController:
         self.dyn = self.weld.dyn
         self.act = Actuators(hm)
         self.sole = SoleGeometry.from_model(hm)
-        mu = float(ctx.scenario.contact.friction_coefficient) * self.settings.friction_safety
-        self.mu = mu / math.sqrt(2.0)          # the pyramid |fx|, |fy| <= mu' fz lies inside the cone |f_t| <= mu fz
-        # a sole spinning about its CoP resists with at most ~ mu fz times a third of its half-width (a uniform
-        # pressure on a disc of that radius gives 2/3 r): conservative, the yaw moment a weld can otherwise hold
-        self.torsion = mu * self.sole.width / 6.0
         fid = hm.frame_id
         self.fid = {n: fid(n) for n in ("Pc_17", "O_17", "P_tpR", "P_tpL", "O_1", "O_2", "O_3", "O_4")}
         self.theta0 = hm.theta_from_q(ctx.q0)
@@ -177,24 +175,32 @@ class BalanceController:
         self._w_joint = np.where(self._upper, s.w_upper, s.w_posture)
         self._lift_k, self._lift0 = -1, 0.0     # the swing (its phase index) and its heel lift at lift-off, rad
         self._dsp_k, self._dsp_t0 = -1, 0.0     # the double support (its phase index) and its start, plan's clock, s
-        self._box_cache: dict[tuple, np.ndarray] = {}
         self._task_buffers: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         # the components linear in tau (revolute and spherical joints; the shoulders' are not) and their bounds
         self._exact = self.act.component_map(ctx.q0)[1]
         self._exact_limits = self.act.limits[self._exact] * s.torque_margin
         self._box_kinds: dict[Phase, np.ndarray] = {}
         self._bounds: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}   # DAQP's row kinds, upper bounds
-        self._boxes: dict[bool, tuple[np.ndarray, ...]] = {}      # heel, toe, whole-sole rows; by double support
         self._stage = CompiledStage(self) if self.compiled and _kernel.AVAILABLE else None
         self._kin_data = self.model.createData()
         self._tgt = np.zeros(TARGET_SIZE)
         self._gains = np.array([*pd(s.hip_omega), s.w_hip, *pd(s.trunk_omega), s.w_trunk, *pd(s.swing_omega),
                                 s.w_swing, *pd(s.posture_omega)], dtype=float)
-        self._tables: dict[bool, BalanceTables] = {}     # the QP's constant inputs; by double support
+        # the sole boxes' rows and the QP's constant inputs (boxes.py)
+        self.boxes = SoleBoxes(self.sole, float(ctx.scenario.contact.friction_coefficient) * s.friction_safety, s,
+                               self._gains, self._w_joint)
         self.dcm = dcm_feedback(s, self.model, self.fid["Pc_17"], self.traj)   # None: the hip PD
+        if self.dcm is not None and self._real_ground and s.external_force:
+            # real ground: lean against what the feet's sensors say the model does not know (force.py)
+            mass = pin.computeTotalMass(self.model)
+            self.dcm.force = ForceEstimate(mass, s.external_force_filter_hz, s.lean_max_m * mass * self.dcm.omega ** 2)
+            self.dcm.lean_max = s.lean_max_m
         # real ground: the sensed base twist low-passed (its noise would reach every task and the welds' damping)
         self._twist = TwistFilter(s.base_velocity_filter_hz) \
             if self._real_ground and s.base_velocity == "filtered" else None
+        # real ground: the supported part of the stance sole, from the foot's turn and its sensed CoP (foothold.py)
+        self._footholds = FootholdTracker(self.model, self.sole, s) \
+            if self._real_ground and s.footholds else None
 
     def _reference_time(self, obs: Observation) -> float:
         """The time at which the references are read, s: the plan's clock ``obs.t - obs.plan_delay`` (``time_shift``
@@ -206,11 +212,20 @@ class BalanceController:
         return obs.t - obs.plan_delay if self.settings.time_shift else obs.t
 
     def run_info(self) -> dict:
-        """For the run's summary: calls, and calls whose contact constraints had to be relaxed."""
+        """For the run's summary: calls, calls whose contact constraints had to be relaxed, steps adjusted, the
+        stances found partly supported (foot, toe box loaded, cuts as [time s, sole axis, bound m]), and the external
+        force estimate (N, world x and y) and the lean (m) at the end."""
         out = {"balance_calls": self.calls, "balance_relaxed_cop": self.relaxed_cop,
                "balance_relaxed_all": self.relaxed_all}
         if self._steps is not None:
             out["balance_steps_adjusted"] = self._steps.adjusted
+        if self._footholds is not None:   # the stances whose sole was found partly supported
+            out["balance_partial_footholds"] = [
+                {"foot": h.foot, "toe_loaded": h.toe_loaded, "cuts": [[t, axis, bound] for t, axis, bound in h.cuts]}
+                for h in self._footholds.history]
+        if self.dcm is not None and self.dcm.force is not None:   # the last estimate of the external force
+            out["balance_external_force_N"] = [float(x) for x in self.dcm.force.force]
+            out["balance_lean_m"] = [float(x) for x in self.dcm.lean]
         return out
 
     @property
@@ -258,20 +273,12 @@ class BalanceController:
             for i, frame in enumerate(welds):
                 if frame in _TOE_FRAMES:
                     unload[i] = s.w_unload * u * u
-        boxes = self._boxes.get(phase.is_double_support)
-        if boxes is None:
-            sole = self.sole
-            jx, _, jz = sole.toe_joint
-            margin = s.cop_margin_dsp_m if phase.is_double_support else s.cop_margin_ssp_m
-            boxes = self._boxes[phase.is_double_support] = (
-                self._box_rows(sole.heel_back_x, jx, sole.sole_z, margin),
-                self._box_rows(0.0, sole.toe_front_x - jx, sole.sole_z - jz, margin),
-                self._box_rows(sole.heel_back_x, sole.toe_front_x, sole.sole_z, margin))
-        tables = self._tables.get(phase.is_double_support)
-        if tables is None:
-            tables = self._tables[phase.is_double_support] = BalanceTables(
-                self._gains, self._w_joint, float(s.heel_lift_rad), *boxes, float(s.w_acc), float(s.w_force),
-                float(s.w_torque))
+        hold, trail_loaded = None, True
+        if self._footholds is not None and obs.anchors is not None:   # real ground (foothold.py)
+            hold = self._footholds.update(obs.t, phase.support_foot, obs.anchors, q, kin_data, obs.foot_wrenches)
+            if phase.is_double_support:
+                trail_loaded = self._footholds.toe_loaded("R" if phase.support_foot == "L" else "L")
+        tables = self.boxes.tables(phase.is_double_support, hold, trail_loaded)
         build = self._qp_compiled if self._stage is not None else self._qp_reference
         G, g, C, lo, ne, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, tables, unload)
         nv, m = self.nv, Jc.shape[0]
@@ -333,7 +340,8 @@ class BalanceController:
             p_ref, v6_ref, R_ref = traj.hip_reference(k, t)
             tg = Targets(t=t, hip=(p_ref, v6_ref, R_ref, traj.hip_acceleration(k, t)))
         if self.dcm is not None:       # the hip task realises the DCM law (dcm.py) instead of its own PD
-            tg.hip = self.dcm.hip_targets(tg.hip, traj.com_targets(k, t), k, t, obs.q, obs.v, kin_data)
+            tg.hip = self.dcm.hip_targets(tg.hip, traj.com_targets(k, t), k, t, obs.q, obs.v, kin_data,
+                                          (obs.t, obs.foot_wrenches))
         info = traj.phases[k]
         if info.swing_foot is not None:
             steps = self._steps
@@ -532,34 +540,6 @@ class BalanceController:
             jt = pin.getFrameJacobian(model, d, ftoe, pin.ReferenceFrame.LOCAL)[:, int(rows.lock_v[k])]
             out.append((i, rows.n_weld_rows + k, X, jt))
         return out
-
-    def _box_rows(self, x_lo: float, x_hi: float, zs: float, margin: float) -> np.ndarray:
-        """(11, 6) rows L with L w >= 0 for a wrench w = [fx fy fz nx ny nz] (at a frame origin, the sole plane at
-        z = zs) inside one sole box [x_lo, x_hi] x [-width/2, width/2]: fz >= 0, the friction pyramid, the torsion
-        bound, the CoP inside the box shrunk by ``margin``.  Moments about the sole-plane point (0, 0, zs):
-        n'x = nx + zs fy, n'y = ny - zs fx; CoP x = -n'y / fz, y = n'x / fz."""
-        key = (x_lo, x_hi, zs, margin)
-        rows = self._box_cache.get(key)
-        if rows is not None:
-            return rows
-        hw = self.sole.width / 2.0
-        mu, tor = self.mu, self.torsion
-        lo, hi, ylo, yhi = x_lo + margin, x_hi - margin, -hw + margin, hw - margin
-        rows = self._box_cache[key] = np.array([
-            [0, 0, 1, 0, 0, 0],               # fz >= 0
-            [1, 0, mu, 0, 0, 0],              # friction pyramid
-            [-1, 0, mu, 0, 0, 0],
-            [0, 1, mu, 0, 0, 0],
-            [0, -1, mu, 0, 0, 0],
-            [0, 0, tor, 0, 0, 1],             # |n_z| <= torsion fz
-            [0, 0, tor, 0, 0, -1],
-            [zs, 0, -lo, 0, -1, 0],           # -n'y - lo fz >= 0
-            [-zs, 0, hi, 0, 1, 0],            # n'y + hi fz >= 0
-            [0, zs, -ylo, 1, 0, 0],           # n'x - ylo fz >= 0
-            [0, -zs, yhi, -1, 0, 0],          # yhi fz - n'x >= 0
-        ], dtype=float)
-        rows.flags.writeable = False           # cached (the sole and the margins are fixed): read-only
-        return rows
 
     def _solve(self, G, g, C, lo, ne, cop_rows) -> tuple[np.ndarray, int]:
         """min 1/2 x^T G x - g^T x  s.t.  C[:ne] x = lo[:ne], C[ne:] x >= lo[ne:] (``cop_rows`` flags the CoP rows of

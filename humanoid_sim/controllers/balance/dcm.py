@@ -15,7 +15,10 @@ this p_ref makes the law return the plan's acceleration on the plan).  The comma
 a PD on the whole-body CoM error with stiffness k omega and damping omega + k.  The QP realises it through the
 Body-17 CoM task (its horizontal PD is cancelled: the target is the measured hip, the acceleration the plan's plus
 the command's deviation from the plan's), and keeps every foot's CoP inside its sole.  Step adjustment
-(:mod:`.steps`) shifts p_ref and xi_ref by the LIPM response to its moved footholds (:meth:`ZmpShift.at`).
+(:mod:`.steps`) shifts p_ref and xi_ref by the LIPM response to its moved footholds (:meth:`ZmpShift.at`).  On
+real ground an estimated external force f (:mod:`.force`) leans the plan by b = f / (m omega^2): the error is
+measured against xi_ref - b, so the command becomes c_ddot_ref + omega^2 (c - c_ref) - omega (omega + k)
+(xi - xi_ref + b), which holds the ZMP at p_ref under c_ddot = omega^2 (c - p) + f / m.
 Units: SI; world frame (x lateral, y forward, z up).
 """
 
@@ -27,6 +30,8 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+
+from humanoid_sim.controllers.balance.force import lean_offset
 
 G = 9.81
 """Gravity, m/s^2 (the design's)."""
@@ -117,7 +122,13 @@ class DcmFeedback:
         self.c_dot = np.zeros(3)
         self.xi = np.zeros(2)
         self.xi_err = np.zeros(2)
-        """The last call's measured DCM minus its reference (shifted by the moved footholds), m."""
+        """The last call's measured DCM minus its reference (shifted by the moved footholds and the lean), m."""
+        self.force: Any = None
+        """The external force estimate (:class:`.force.ForceEstimate`) the CoM leans against, or None."""
+        self.lean_max = 0.0
+        """The largest lean, m (:func:`.force.lean_offset`)."""
+        self.lean = (0.0, 0.0)
+        """The last call's lean b (x, y), m: the plan's CoM and DCM are followed at minus b."""
 
     def measure(self, q: np.ndarray, v: np.ndarray, data: pin.Data | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Measure the whole-body CoM (``c``, ``c_dot``, ``xi``) at (q, v); returns the Body-17 CoM's position (3,)
@@ -138,7 +149,7 @@ class DcmFeedback:
         return d.oMf[f].translation, pin.getFrameVelocity(model, d, f, LWA).linear
 
     def hip_targets(self, hip: tuple, com_ref: tuple, k: int, t: float, q: np.ndarray, v: np.ndarray,
-                    data: pin.Data | None = None) -> tuple:
+                    data: pin.Data | None = None, sensed: tuple[float, Any] | None = None) -> tuple:
         """The Body-17 CoM task's (position, velocity (6,), orientation, acceleration (6,)) that realise the DCM law:
         horizontally the measured hip (no PD error) and the plan's hip acceleration plus the law's deviation from the
         plan's CoM acceleration; vertically and in orientation the plan's ``hip`` unchanged.
@@ -151,6 +162,8 @@ class DcmFeedback:
             t: the plan's time, s (for the moved footholds' offsets).
             q, v: the state.
             data: forward kinematics at (q, v) already computed (:meth:`measure`), or None.
+            sensed: (the call's time, s; the feet's measured wrenches, ``Observation.foot_wrenches``) for the
+                external force estimate (:attr:`force`), or None (no lean).
         """
         p_ref, v6_ref, R_ref, a6_ref = hip
         c_ref, cd_ref, a_ref, _ = com_ref
@@ -160,7 +173,12 @@ class DcmFeedback:
         crx, cry = float(c_ref[0]), float(c_ref[1])
         xpx, xpy = crx + float(cd_ref[0]) / om, cry + float(cd_ref[1]) / om       # the plan's DCM
         xi = self.xi
-        xix, xiy = float(xi[0]), float(xi[1])
+        bx = by = 0.0
+        if self.force is not None and sensed is not None:
+            # an external force the model does not know: follow the plan leaned against it (force.py)
+            f = self.force.update(sensed[0], self.c_dot, sensed[1])
+            bx, by = self.lean = lean_offset(f, self.force.mass, om, self.lean_max)
+        xix, xiy = float(xi[0]) + bx, float(xi[1]) + by
         st = self.steps
         if st is not None:     # the error against the plan with the earlier moved footholds, not this step's own
             _, (d0x, d0y) = self.shift.at(t, skip=st.window if st.k == k else None)

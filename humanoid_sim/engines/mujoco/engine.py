@@ -252,6 +252,8 @@ class MujocoEngine:
         self.q = self.v = None
         self.phase: Phase | None = None
         self.anchors = None
+        self.sensed: np.ndarray | None = None
+        """The feet's wrenches (2, 6) over the last control period (its mean), as ``Observation.foot_wrenches``."""
         self._end = np.zeros(6)       # the loads at the state after the last step (ground.end_loads)
         self._reset_measures()
 
@@ -273,6 +275,7 @@ class MujocoEngine:
         self.q, self.v = self.sim.state()
         self.phase = phase
         self.anchors = record_anchors(self.model, self.q, phase.contacts)
+        self.sensed = None
         self._reset_measures()
         self.recorder.start()
         if self.pusher is not None:
@@ -298,12 +301,13 @@ class MujocoEngine:
         qacc, dt, basic = sim.data.qacc, sim.timestep, BASIC[phase]
         record: MujocoRecord | None = None
         q, v = self.q, self.v
+        n_sub = self._n_sub
         for i in range(n_ctrl):
             ti = t + i * period
             if i:
                 q, v = sim.state()
                 checks.check_stage(ti, q, v, i)
-            cmd = control(Observation(ti, k, phase, q, v, anchors, i, checks.plan_delay))
+            cmd = control(Observation(ti, k, phase, q, v, anchors, i, checks.plan_delay, self.sensed))
             tau = self._tau(q, cmd)
             rec.control(tau, cmd.T, cmd.saturated, cmd.T_cmd)
             if pusher is not None:
@@ -313,13 +317,18 @@ class MujocoEngine:
             sim.advance(1)
             checks.check_acceleration(ti, qacc)  # finite iff Pinocchio's a is
             rec.row(ti, k, basic)
+            wrench = rec.foot_wrenches().copy()
             if i == 0:
                 record = self._record(q, v, cmd, tau)
             if self._measure(ti):
                 break  # a fall: the run ends at this state (check() reports it)
-            for j in range(1, self._n_sub):   # the rest of the control period, tau still held
+            for j in range(1, n_sub):   # the rest of the control period, tau still held
                 sim.advance(1)
                 rec.row(ti + j * dt, k, basic)
+                wrench += rec.foot_wrenches()
+            if n_sub > 1:
+                wrench *= 1.0 / n_sub
+            self.sensed = wrench     # the period's mean: its impulse over the period, as the next call sees it
         self.q, self.v = sim.state()
         sim.forward()
         end_loads(self.mm, sim.data, self._end, self.compiled)

@@ -181,6 +181,12 @@ class TraceRecorder:
         return w[:12].reshape(2, 6).copy(), w[12:18].reshape(2, 3).copy(), w[18:30].reshape(4, 3).copy(), \
             w[30:].reshape(4, 3).copy()
 
+    def foot_wrenches(self) -> np.ndarray:
+        """The last row's foot wrenches (2, 6), a view into the trace (copy it to keep it): per foot (R, L) the
+        ground's force (N, world frame) and its moment about the world origin (N m)."""
+        assert self._block is not None, "no row recorded yet"
+        return self._block[self._i, self._wrench_at:self._wrench_at + 12].reshape(2, 6)
+
     def build(self) -> Trace | None:
         """The run's trace, in Pinocchio's conventions (None before any row): the state maps of
         :class:`humanoid_sim.engines.mujoco.state.StateMap` on every row (the compiled path in one call).  Torques

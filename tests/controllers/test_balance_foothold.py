@@ -1,0 +1,170 @@
+"""Partial footholds (controllers/balance/foothold.py): the sole CoP against the force-weighted contact points, the
+cuts against the geometry of a foot turning about an edge, the QP's cut boxes, and walks over a bar on MuJoCo."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from humanoid_sim.controllers.balance.boxes import box_rows
+from humanoid_sim.controllers.balance.foothold import FootholdTracker, sole_cop
+from humanoid_sim.dynamics.contact.constraints import Anchors
+from humanoid_sim.robot.phases import FOOT_SPECS
+from humanoid_sim.robot.sole import SoleGeometry
+from humanoid_sim.scenario.balance import BalanceSettings
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _wrench_at(points: np.ndarray, forces: np.ndarray) -> np.ndarray:
+    """The resultant [force; moment about the world origin] of point forces."""
+    return np.concatenate([forces.sum(axis=0), np.cross(points, forces).sum(axis=0)])
+
+
+def test_the_sole_cop_is_the_normal_force_weighted_mean_of_the_contact_points():
+    """Point forces on a tilted sole plane: the CoP is the mean of the points weighted by their normal forces; the
+    tangential forces, applied in the plane, do not move it."""
+    rng = np.random.default_rng(3)
+    R = pin.rpy.rpyToMatrix(0.05, -0.08, 1.2)
+    o = np.array([0.16, 0.4, 0.01])
+    local = rng.uniform(-0.05, 0.1, (5, 2))
+    points = o + local @ R[:, :2].T
+    normal = rng.uniform(10.0, 100.0, 5)
+    forces = normal[:, None] * R[:, 2] + rng.uniform(-5.0, 5.0, (5, 2)) @ R[:, :2].T
+    cop = sole_cop(R, o, _wrench_at(points, forces), f_min=20.0)
+    np.testing.assert_allclose(cop, normal @ local / normal.sum(), atol=1e-12)
+    assert sole_cop(R, o, _wrench_at(points, forces * 0.01), f_min=20.0) is None   # 2-5 N in all: unloaded
+
+
+@pytest.fixture()
+def stance(hm):
+    """The right foot flat at the initial configuration, the settings, a tracker, and a helper that turns the
+    anchor by ``rot`` (sole-frame rotation vector, rad) and puts a 400 N normal force at sole point (x, y)."""
+    from humanoid_sim.references.initial import initial_configuration
+    from humanoid_sim.scenario.schema import load_scenario
+
+    sc = load_scenario(ROOT / "scripts/params/sim3.yaml")
+    q = initial_configuration(hm, sc.path)
+    s = BalanceSettings()
+    sole = SoleGeometry.from_model(hm)
+    model = hm.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    M = data.oMf[model.getFrameId(FOOT_SPECS["R"].main_frame)]
+
+    def seen(rot, x, y, toe_angle=0.0):
+        # the anchor is the foot turned back by rot: the foot is then turned by rot from its anchor
+        anchors = Anchors()
+        anchors.placements["O_3"] = pin.SE3(M.rotation @ pin.exp3(-np.asarray(rot, float)), M.translation.copy())
+        anchors.joint_positions["theta3"] = toe_angle
+        o = M.translation + sole.sole_z * M.rotation[:, 2]
+        p = o + M.rotation[:, :2] @ np.array([x, y])
+        f = 400.0 * M.rotation[:, 2]
+        w = np.zeros((2, 6))
+        w[0] = np.concatenate([f, np.cross(p, f)])
+        return anchors, w
+
+    return SimpleNamespace(hm=hm, q=q, s=s, sole=sole, seen=seen, tracker=FootholdTracker(model, sole, s))
+
+
+def test_a_foot_rolling_about_an_inner_line_is_cut_there(stance):
+    """Turned 2 deg about its sole x axis (its +y side up: the -y side found no ground) with its CoP at y = 10 mm:
+    the supported part is y >= 10 + 5 mm; the toe box stays loaded."""
+    st = stance
+    anchors, w = st.seen((math.radians(2.0), 0.0, 0.0), 0.05, 0.01)
+    hold = st.tracker.update(1.0, "R", anchors, st.q, None, w)
+    assert hold.y_lo == pytest.approx(0.015, abs=1e-9) and hold.y_hi == math.inf
+    assert hold.x_lo == -math.inf and hold.x_hi == math.inf and hold.toe_loaded and not hold.whole
+    assert st.tracker.history == [hold] and hold.cuts == [(1.0, "y", hold.y_lo)]
+    # the same turn the other way: the +y side dropped, the support is below the CoP
+    anchors, w = st.seen((-math.radians(2.0), 0.0, 0.0), 0.05, 0.01)
+    hold = FootholdTracker(st.hm.model, st.sole, st.s).update(1.0, "R", anchors, st.q, None, w)
+    assert hold.y_hi == pytest.approx(0.005, abs=1e-9) and hold.y_lo == -math.inf
+
+
+def test_a_foot_pitching_about_an_inner_line_is_cut_there(stance):
+    """Turned 2 deg about its sole y axis, toe down (the toe side dropped), CoP at x = 60 mm: x <= 55 mm."""
+    anchors, w = stance.seen((0.0, math.radians(2.0), 0.0), 0.06, 0.0)
+    hold = stance.tracker.update(1.0, "R", anchors, stance.q, None, w)
+    assert hold.x_hi == pytest.approx(0.055, abs=1e-9) and hold.x_lo == -math.inf
+
+
+def test_a_foot_tipping_about_its_own_edge_or_barely_turning_is_not_cut(stance):
+    """A CoP 5 mm inside the sole's +y edge (45 mm) with the -y side down is a foot tipping over its edge: a cut
+    would leave 5 mm, under the 15 mm minimum.  A turn of 1 deg is below the 1.5 deg that reveals a foothold."""
+    st = stance
+    anchors, w = st.seen((math.radians(2.0), 0.0, 0.0), 0.05, st.sole.width / 2 - 0.005)
+    assert st.tracker.update(1.0, "R", anchors, st.q, None, w).whole
+    anchors, w = st.seen((math.radians(1.0), 0.0, 0.0), 0.05, 0.01)
+    assert FootholdTracker(st.hm.model, st.sole, st.s).update(1.0, "R", anchors, st.q, None, w).whole
+
+
+def test_a_foot_anchored_with_its_toe_bent_carries_nothing_on_its_toe_box(stance):
+    """Toe joint at 10 deg when anchored: no load on the toe box, and none on that toe when it trails next."""
+    st = stance
+    anchors, w = st.seen((0.0, 0.0, 0.0), 0.05, 0.0, toe_angle=math.radians(10.0))
+    hold = st.tracker.update(1.0, "R", anchors, st.q, None, w)
+    assert not hold.toe_loaded and not hold.whole and st.tracker.toe_loaded("R")   # still the stance
+    other = Anchors()
+    other.placements["O_4"] = pin.SE3.Identity()
+    other.joint_positions["theta4"] = 0.0
+    st.tracker.update(1.5, "L", other, st.q, None, None)                            # the next stance
+    assert not st.tracker.toe_loaded("R") and st.tracker.toe_loaded("L")
+
+
+def _rows(lo, hi, ylo, yhi, zs=-0.078):
+    return box_rows(lo, hi, ylo, yhi, zs, 0.24, 0.02)
+
+
+def _wrench(fz, cop, zs=-0.078):
+    """A normal force fz at sole point (x, y) as [f; moment about the frame origin], the sole at z = zs."""
+    return np.concatenate([[0.0, 0.0, fz], np.cross([cop[0], cop[1], zs], [0.0, 0.0, fz])])
+
+
+def test_a_cut_box_admits_exactly_the_cops_inside_it_and_an_empty_box_nothing():
+    from scipy.optimize import linprog
+
+    L = _rows(-0.02, 0.1, 0.015, 0.03)
+    for cop, inside in (((0.0, 0.02), True), ((0.0, 0.014), False), ((0.0, 0.031), False), ((0.101, 0.02), False)):
+        assert bool(np.all(L @ _wrench(300.0, cop) >= -1e-12)) is inside, cop
+    # the empty box: the largest normal force its rows admit (with fz <= 1 to bound the LP) is zero
+    E = _rows(1.0, 0.0, 0.0, 0.0)
+    res = linprog(c=[0, 0, -1, 0, 0, 0], A_ub=np.vstack([-E, [[0, 0, 1, 0, 0, 0]]]), b_ub=[0.0] * len(E) + [1.0],
+                  bounds=[(None, None)] * 6)
+    assert res.status == 0 and abs(res.x[2]) < 1e-12
+
+
+def _bar_walk(tmp_path, balance: dict | None = None):
+    pytest.importorskip("mujoco")
+    import yaml
+
+    from humanoid_sim.api import run_walk
+
+    # the terrain suite's bar along the outer half of the right foot's second foothold (its toe box spans y 0.523 -
+    # 0.597 m, the sole x 0.115 - 0.205 m): the inner half of the sole finds no ground for 10 mm
+    doc = {"base": str(ROOT / "scripts/params/sim3_zmp.yaml"), "name": "outer_bar",
+           "disturbances": {"terrain": [{"kind": "bar", "centre": [0.185, 0.485, 0.005], "size": [0.04, 0.26, 0.01]}]}}
+    if balance:
+        doc["balance"] = balance
+    f = tmp_path / "outer_bar.yaml"
+    f.write_text(yaml.safe_dump(doc))
+    return run_walk(f, "mujoco")
+
+
+@pytest.mark.slow
+def test_a_foot_on_a_bar_under_its_outer_half_is_cut_and_the_walk_completes_on_mujoco(tmp_path):
+    run = _bar_walk(tmp_path)
+    assert run.result.completed, run.result.reason
+    holds = run.result.extra["balance_partial_footholds"]
+    right = [h for h in holds if h["foot"] == "R" and h["cuts"]]
+    assert right, holds
+    # the cut keeps the CoP on the bar: the right foot's outer side is its -y side (sole frame, y left), the bar's
+    # inner edge 5 mm outward of the sole's centre line
+    assert all(axis == "y" and bound < 0.0 for _, axis, bound in right[0]["cuts"]), right
+    fell = _bar_walk(tmp_path, {"footholds": False})
+    assert not fell.result.completed and "fall" in fell.result.reason, fell.result.reason
