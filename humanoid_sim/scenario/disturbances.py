@@ -102,7 +102,7 @@ BOX_KEYS = ("kind", "centre", "size", "yaw_deg", "friction")
 SLOPE_KEYS = ("kind", "centre", "size", "angle_deg", "direction", "normal", "thickness_m", "friction")
 SLOPE_DIRECTIONS = ("up", "down", "sideways")
 SENSING_KEYS = ("base_linear_velocity_mps", "base_angular_velocity_radps", "joint_position_rad",
-                "joint_velocity_radps", "seed", "delay_s")
+                "joint_velocity_radps", "foot_force_N", "foot_moment_Nm", "seed", "delay_s")
 DEFAULT_BODY = 17
 """The pushed body by default: the lower trunk (the pelvis), the robot's root, pushed at its CoM ``Pc_17``."""
 
@@ -123,7 +123,9 @@ FRICTION = Num("a friction coefficient", 0.0, 5.0, lo_open=True)
 STD = {"base_linear_velocity_mps": Num("a standard deviation in m/s", 0.0, 10.0),
        "base_angular_velocity_radps": Num("a standard deviation in rad/s", 0.0, 10.0),
        "joint_position_rad": Num("a standard deviation in rad", 0.0, 1.0),
-       "joint_velocity_radps": Num("a standard deviation in rad/s", 0.0, 10.0)}
+       "joint_velocity_radps": Num("a standard deviation in rad/s", 0.0, 10.0),
+       "foot_force_N": Num("a standard deviation in N", 0.0, 1e4),
+       "foot_moment_Nm": Num("a standard deviation in N m", 0.0, 1e4)}
 DELAY = Num("a delay in s", 0.0, 1.0)
 
 
@@ -226,6 +228,8 @@ class Sensing:
     base_angular_velocity_radps: float = 0.0
     joint_position_rad: float = 0.0
     joint_velocity_radps: float = 0.0
+    foot_force_N: float = 0.0
+    foot_moment_Nm: float = 0.0
     seed: int = 0
     delay_s: float = 0.0
 

@@ -93,16 +93,24 @@ class Sensed:
                                                   (True, slice(3, 6), s.base_angular_velocity_radps),
                                                   (False, slice(7, None), s.joint_position_rad),
                                                   (True, slice(6, None), s.joint_velocity_radps)) if sd > 0.0]
+        # the feet's force-torque sensors (Observation.foot_wrenches): each force and moment component
+        self._wrench_std = [(c, sd) for c, sd in ((slice(0, 3), s.foot_force_N), (slice(3, 6), s.foot_moment_Nm))
+                            if sd > 0.0]
 
     def observe(self, obs: Observation) -> Observation:
         """``obs`` with the sensing noise added (new arrays; the engine's state is untouched)."""
-        if not self._std:
+        if not self._std and not self._wrench_std:
             return obs
         q, v = obs.q.copy(), obs.v.copy()
         for is_v, rows, sd in self._std:
             x = v if is_v else q
             x[rows] += self.rng.normal(0.0, sd, x[rows].shape)
-        return replace(obs, q=q, v=v)
+        w = obs.foot_wrenches
+        if w is not None and self._wrench_std:
+            w = w.copy()
+            for cols, sd in self._wrench_std:
+                w[:, cols] += self.rng.normal(0.0, sd, w[:, cols].shape)
+        return replace(obs, q=q, v=v, foot_wrenches=w)
 
     def __call__(self, obs: Observation) -> Command:
         self.calls += 1
@@ -124,6 +132,7 @@ class Sensed:
         return {"base_linear_velocity_mps": s.base_linear_velocity_mps,
                 "base_angular_velocity_radps": s.base_angular_velocity_radps,
                 "joint_position_rad": s.joint_position_rad, "joint_velocity_radps": s.joint_velocity_radps,
+                "foot_force_N": s.foot_force_N, "foot_moment_Nm": s.foot_moment_Nm,
                 "seed": s.seed, "delay_s": s.delay_s, "delay_applied_s": self.delay, "delay_periods": self.periods,
                 "control_period_s": self.period, "controller_calls": self.calls}
 

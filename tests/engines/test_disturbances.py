@@ -208,6 +208,24 @@ def test_sensing_noise_has_the_asked_law_and_the_seed_reproduces() -> None:
     np.testing.assert_array_equal(np.array([o.v for o in again]), V[:50])   # the same seed: the same draws
 
 
+def test_foot_sensor_noise_has_the_asked_law_and_leaves_the_engines_wrench_alone() -> None:
+    seen: list[Observation] = []
+    s = Sensing(foot_force_N=5.0, foot_moment_Nm=0.5, seed=3)
+    wrapped = Sensed(lambda o: (seen.append(o), Command(np.zeros(32)))[1], s, 0.002)
+    true = np.arange(12.0).reshape(2, 6)
+    n = 4000
+    for i in range(n):
+        wrapped(dataclasses.replace(_obs(0.002 * i), foot_wrenches=true))
+    W = np.array([o.foot_wrenches for o in seen]) - true
+    for x, sd in ((W[:, :, :3], 5.0), (W[:, :, 3:], 0.5)):
+        k = x.size
+        # as above: the sample std within 5 standard errors, the mean within 5 sigma / sqrt(k)
+        assert np.std(x) == pytest.approx(sd, rel=5 / math.sqrt(2 * k))
+        assert abs(np.mean(x)) < 5 * sd / math.sqrt(k)
+    np.testing.assert_array_equal(true, np.arange(12.0).reshape(2, 6))     # the engine's array is not touched
+    assert Sensed(lambda o: Command(np.zeros(32)), s, 0.002).observe(_obs(0.0)).foot_wrenches is None
+
+
 def test_delay_lands_each_command_whole_periods_later() -> None:
     """The command applied at t is the one computed at t - d, d = delay_s rounded to control periods (0.0205 s at
     2 ms: 10 periods, 0.02 s); before that the first command."""

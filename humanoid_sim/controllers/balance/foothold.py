@@ -96,6 +96,7 @@ class FootholdTracker:
         self.f_min = float(f_min)
         self.fid = {f: model.getFrameId(FOOT_SPECS[f].main_frame) for f in FOOT_SPECS}
         self.hold: Foothold | None = None
+        self._seen: tuple = (None, None, None)     # the anchors last read, their foot, its anchor's rotation^T
         self.last: dict[str, Foothold] = {}
         """Each foot's previous stance: a trailing foot's toe box carries load in double support only if it did
         in that stance."""
@@ -103,30 +104,35 @@ class FootholdTracker:
         """Every stance that was not wholly supported, in order."""
 
     def update(self, t: float, foot: str, anchors, q: np.ndarray, data: pin.Data | None,
-               foot_wrenches: np.ndarray | None) -> Foothold:
+               foot_wrenches: np.ndarray | None) -> Foothold | None:
         """The foothold of the flat ``foot`` at time ``t`` (s), after reading its rotation from its anchor and its
         measured CoP.  ``anchors``: the observation's (``Observation.anchors``); ``data``: forward kinematics at
         ``q`` already computed, or None; ``foot_wrenches``: ``Observation.foot_wrenches`` (None: no cut)."""
-        spec = FOOT_SPECS[foot]
-        anchor = anchors.placements[spec.main_frame]
-        at = anchor.translation
-        key = (float(at[0]), float(at[1]), float(at[2]))
         hold = self.hold
-        if hold is None or hold.foot != foot or hold.anchor != key:
-            bent = abs(float(anchors.joint_positions.get(spec.toe_joint, 0.0))) > self.s.foothold_toe_bent_rad
-            if hold is not None:
-                self.last[hold.foot] = hold
-            hold = self.hold = Foothold(foot, key, toe_loaded=not bent)
-            if bent:
-                self.history.append(hold)
-        if foot_wrenches is None:
+        if anchors is not self._seen[0] or foot != self._seen[1]:   # a new phase: the same stance, or a new one
+            spec = FOOT_SPECS[foot]
+            anchor = anchors.placements[spec.main_frame]
+            at = anchor.translation
+            key = (float(at[0]), float(at[1]), float(at[2]))
+            self._seen = (anchors, foot, anchor.rotation.T.copy())
+            if hold is None or hold.foot != foot or hold.anchor != key:
+                bent = abs(float(anchors.joint_positions.get(spec.toe_joint, 0.0))) > self.s.foothold_toe_bent_rad
+                if hold is not None:
+                    self.last[hold.foot] = hold
+                hold = self.hold = Foothold(foot, key, toe_loaded=not bent)
+                if bent:
+                    self.history.append(hold)
+        if foot_wrenches is None or hold is None:
             return hold
         if data is None:
             data = self.data
             pin.forwardKinematics(self.model, data, q)
         M = pin.updateFramePlacement(self.model, data, self.fid[foot])
         R = M.rotation
-        tilt = pin.log3(anchor.rotation.T @ R)           # sole frame (the anchor's), rad
+        # the turn from the anchor about the sole's x and y axes, from where the sole's normal went (in the
+        # anchor's frame, n = (sin b cos a, -sin a, cos a cos b) for a turn a about x then b about y)
+        n = self._seen[2] @ R[:, 2]
+        tilt = (-math.asin(max(-1.0, min(1.0, float(n[1])))), math.atan2(float(n[0]), float(n[2])))
         s = self.s
         lim = s.foothold_tilt_rad
         if abs(tilt[0]) <= lim and abs(tilt[1]) <= lim:
