@@ -37,7 +37,9 @@ the full cone the QP leans on a just-landed, lightly loaded foot up to its frict
 foot slides); a torsion bound.  Every actuator component the thesis's saturation limits (humanoid_sim.robot.actuators;
 T linear in tau) stays within ``torque_margin`` of its limit (those rows join the QP only when its optimum without
 them breaks one: ``lazy_torque_limits``, the same optimum).  When no motion satisfies them (the state is already
-beyond recovery), the CoP margins are dropped, then every inequality; ``run_info`` counts such calls.
+beyond recovery), the CoP margins are dropped, then every inequality; ``run_info`` counts such calls.  On real
+ground the stance foot's boxes shrink to the part of its sole the ground supports (:mod:`.foothold`, rows by
+:mod:`.boxes`), and the DCM plan leans against the external force the feet's sensors reveal (:mod:`.force`).
 
 Tasks, world frame (LOCAL_WORLD_ALIGNED), each a PD on the error plus the reference's acceleration:
 - Body-17 CoM (frame Pc_17): ``traj.hip_reference`` / ``traj.hip_acceleration``; gains ``hip_omega`` (rad/s,
