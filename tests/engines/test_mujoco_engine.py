@@ -295,3 +295,25 @@ def test_body_wrenches_against_per_contact_sums(hm: HumanoidModel, sc) -> None:
     # 1e-9 N and N m on forces up to ~400 N: the same terms, summed in the same order, rotated by another product
     np.testing.assert_allclose(bf, F_ref, atol=1e-9, rtol=0)
     np.testing.assert_allclose(bm, M_ref, atol=1e-9, rtol=0)
+
+
+def test_a_foot_on_its_toe_is_judged_by_its_toe_box(hm: HumanoidModel, sc) -> None:
+    """The fall test's tilt is that of the sole box bearing the load.  With the right toe joint bent by 0.1 rad
+    (the main body level, the toe box turned): bearing on its main body, the foot is level; bearing on its toe box
+    alone, it is tilted by 0.1 rad.  (A toe-off is the other way round: a tilted main body on a level toe box, which
+    the main body's tilt alone took for a foot tipped over.)"""
+    from humanoid_sim.engines.mujoco.contact import bearing_tilt, sole_tilt
+
+    sim = Simulator(hm, sc, engine="mujoco")
+    eng = sim.engine
+    q = sim.q0.copy()
+    jid = hm.model.getJointId("theta3")
+    q[hm.model.idx_qs[jid]] += 0.1
+    eng.sim.set_state(q, np.zeros(hm.model.nv))
+    eng.sim.forward()
+    mm, data = eng.mm, eng.sim.data
+    level = sole_tilt(mm, data, "R")
+    assert level < 1e-3                                          # q0: the feet flat
+    assert bearing_tilt(mm, data, "R", 300.0, 20.0) == level
+    # the toe body turned by the joint's 0.1 rad about its axis (the sole's lateral axis)
+    assert bearing_tilt(mm, data, "R", 5.0, 20.0) == pytest.approx(0.1, abs=level + 1e-9)

@@ -275,10 +275,19 @@ def sole_corners(mm: MujocoModel, data: mujoco.MjData, foot: str, box: int = 1) 
     return data.geom_xpos[g] + _tables(mm).corners[g] @ data.geom_xmat[g].reshape(3, 3).T
 
 
-def sole_tilt(mm: MujocoModel, data: mujoco.MjData, foot: str) -> float:
-    """Angle (rad) between the foot main body's sole normal (its z axis) and the world z axis."""
-    R = data.xmat[mm.foot_bodies[foot][1]].reshape(3, 3)
+def sole_tilt(mm: MujocoModel, data: mujoco.MjData, foot: str, box: int = 1) -> float:
+    """Angle (rad) between a sole box's normal (the z axis of the foot's main body, ``box`` 1, or of its toe body,
+    0) and the world z axis."""
+    R = data.xmat[mm.foot_bodies[foot][box]].reshape(3, 3)
     return float(np.arctan2(np.hypot(R[0, 2], R[1, 2]), R[2, 2]))  # well conditioned near 0, unlike arccos
+
+
+def bearing_tilt(mm: MujocoModel, data: mujoco.MjData, foot: str, main_load: float, f_min: float) -> float:
+    """The tilt (rad) of the part of ``foot`` that bears its load: its main body's sole (:func:`sole_tilt`), or,
+    when the main body carries less than ``f_min`` (N; ``main_load`` its normal force), its toe body's.  A foot
+    on its toe with its heel lifted (a double support's toe-off) has a tilted main body on a flat toe box: it has
+    not tipped."""
+    return sole_tilt(mm, data, foot, 1 if main_load >= f_min else 0)
 
 
 class SlipMeter:

@@ -89,7 +89,7 @@ import pinocchio as pin
 
 from humanoid_sim.dynamics.contact import record_anchors
 from humanoid_sim.engines.mujoco import compiled as mjc
-from humanoid_sim.engines.mujoco.contact import foot_contacts, sole_cop, sole_tilt
+from humanoid_sim.engines.mujoco.contact import bearing_tilt, foot_contacts, sole_cop
 from humanoid_sim.engines.mujoco.disturb import disturbance_info, scenario_pusher, scenario_terrain
 from humanoid_sim.engines.mujoco.ground import GroundMeter, ReferenceGroundMeter, end_loads, trunk_tilt
 from humanoid_sim.engines.mujoco.model import MujocoModelError, MujocoSettings
@@ -429,7 +429,7 @@ class MujocoEngine:
             f = FEET[i]
             # its CoP's edges only when its sole tilts (sole_cop costs ~0.1 ms, and this runs at every update)
             if out[7 + i] > s.edge_tilt_rad - _NEAR:
-                tilt = sole_tilt(mm, data, f)
+                tilt = bearing_tilt(mm, data, f, out[2 * i + 1], s.contact_force_N)
                 cop = sole_cop(mm, data, foot_contacts(mm, data)[f], s.edge_tolerance_m) \
                     if tilt > s.edge_tilt_rad else None
                 if cop is not None and cop.edges:
