@@ -105,16 +105,17 @@ def test_a_foot_tipping_about_its_own_edge_or_barely_turning_is_not_cut(stance):
 
 
 def test_a_foot_anchored_with_its_toe_bent_carries_nothing_on_its_toe_box(stance):
-    """Toe joint at 10 deg when anchored: no load on the toe box, and none on that toe when it trails next."""
+    """Toe joint at 10 deg when anchored: no load on the toe box; when the foot trails next, its heel lifts from
+    that bend (a toe at 2 deg is not bent: 0)."""
     st = stance
     anchors, w = st.seen((0.0, 0.0, 0.0), 0.05, 0.0, toe_angle=math.radians(10.0))
     hold = st.tracker.update(1.0, "R", anchors, st.q, None, w)
-    assert not hold.toe_loaded and not hold.whole and st.tracker.toe_loaded("R")   # still the stance
+    assert not hold.toe_loaded and not hold.whole and st.tracker.toe_bend("R") == 0.0   # still the stance
     other = Anchors()
     other.placements["O_4"] = pin.SE3.Identity()
-    other.joint_positions["theta4"] = 0.0
-    st.tracker.update(1.5, "L", other, st.q, None, None)                            # the next stance
-    assert not st.tracker.toe_loaded("R") and st.tracker.toe_loaded("L")
+    other.joint_positions["theta4"] = math.radians(2.0)
+    st.tracker.update(1.5, "L", other, st.q, None, None)                                # the next stance
+    assert st.tracker.toe_bend("R") == math.radians(10.0) and st.tracker.toe_bend("L") == 0.0
 
 
 def _rows(lo, hi, ylo, yhi, zs=-0.078):

@@ -88,16 +88,13 @@ class SoleBoxes:
                                         toe)
         return boxes
 
-    def tables(self, dsp: bool, hold: Foothold | None = None, trail_loaded: bool = True) -> BalanceTables:
+    def tables(self, dsp: bool, hold: Foothold | None = None) -> BalanceTables:
         """The QP's tables: the flat foot's heel and toe boxes cut to the supported part of its sole ``hold`` (sole
         frame; each box also keeps its margin from the sole's own edges; a box with nothing left, or the toe box of
-        a foot anchored with its toe bent, carries no load), and a trailing toe box that carries none unless
-        ``trail_loaded``."""
+        a foot anchored with its toe bent, carries no load)."""
         sole = self.sole
         jx, _, jz = sole.toe_joint
         heel, toe, full, trail = self.whole(dsp)
-        if not trail_loaded:
-            trail = self.rows(1.0, 0.0, 0.0, 0.0, sole.sole_z - jz)
         if hold is not None and not hold.whole:
             m = self.s.cop_margin_dsp_m if dsp else self.s.cop_margin_ssp_m
             hw = sole.width / 2.0

@@ -275,12 +275,10 @@ class BalanceController:
             for i, frame in enumerate(welds):
                 if frame in _TOE_FRAMES:
                     unload[i] = s.w_unload * u * u
-        hold, trail_loaded = None, True
+        hold = None
         if self._footholds is not None and obs.anchors is not None:   # real ground (foothold.py)
             hold = self._footholds.update(obs.t, phase.support_foot, obs.anchors, q, kin_data, obs.foot_wrenches)
-            if phase.is_double_support:
-                trail_loaded = self._footholds.toe_loaded("R" if phase.support_foot == "L" else "L")
-        tables = self.boxes.tables(phase.is_double_support, hold, trail_loaded)
+        tables = self.boxes.tables(phase.is_double_support, hold)
         build = self._qp_compiled if self._stage is not None else self._qp_reference
         G, g, C, lo, ne, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, tables, unload)
         nv, m = self.nv, Jc.shape[0]
@@ -359,7 +357,11 @@ class BalanceController:
             if self._dsp_k != k:
                 self._dsp_k, self._dsp_t0 = k, min(t, info.t_start)
             x = min(1.0, max(0.0, (t - self._dsp_t0) / min(info.duration, s.heel_lift_time_s)))
-            tg.heel = ("R" if phase.support_foot == "L" else "L", s.heel_lift_rad * x * x * (3.0 - 2.0 * x))
+            trail = "R" if phase.support_foot == "L" else "L"
+            # the lift is the main body's pitch about the toe body's y axis, -(toe joint angle): a toe that stood
+            # bent on something (foothold.py) starts from its bend, not from a main body parallel to the toe box
+            bend = self._footholds.toe_bend(trail) if self._footholds is not None else 0.0
+            tg.heel = (trail, -bend + s.heel_lift_rad * x * x * (3.0 - 2.0 * x))
         return tg
 
     def _qp_reference(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,

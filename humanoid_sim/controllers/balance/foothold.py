@@ -8,8 +8,9 @@ edge. Two rules, for each stance of a foot (touchdown to lift-off):
 
 - **Toe box.** A foot whose toe joint was bent by more than ``foothold_toe_bent_rad`` when it was anchored (its toe
   box came down on something its heel box did not: a bar under the toe) carries no load on its toe box: the
-  QP's ground wrench of that box is zero, and the toe's motor just holds the toe; in the double support that
-  follows, the trailing foot held by that toe carries nothing either (its motors hold it where it is).
+  QP's ground wrench of that box is zero, and the toe's motor just holds the toe.  When the foot trails next (held
+  by that toe in double support), its heel lifts from the bend it stood with (:meth:`FootholdTracker.toe_bend`),
+  not from a main body parallel to the toe box, which would drive the heel into the floor.
 - **Cuts.** When the loaded foot has turned about one of its sole axes by more than ``foothold_tilt_rad`` from its
   anchor, it is turning about the support's edge, and the measured CoP lies on that edge: the sole is cut along
   the axis through the CoP, and the CoP is kept ``foothold_cut_margin_m`` inside the side that did not drop. A cut
@@ -44,12 +45,14 @@ class Foothold:
         anchor: where the stance is held (the anchor's translation, world, m: it marks the stance; the engine
             copies a kept anchor at every phase change).
         toe_loaded: False when the foot was anchored with its toe bent.
+        toe_angle: the toe joint's angle when the foot was anchored, rad.
         cuts: the cuts made, as (time s, axis "x" / "y", bound m) in order.
     """
 
     foot: str
     anchor: tuple[float, float, float]
     toe_loaded: bool = True
+    toe_angle: float = 0.0
     x_lo: float = -math.inf
     x_hi: float = math.inf
     y_lo: float = -math.inf
@@ -98,8 +101,7 @@ class FootholdTracker:
         self.hold: Foothold | None = None
         self._seen: tuple = (None, None, None)     # the anchors last read, their foot, its anchor's rotation^T
         self.last: dict[str, Foothold] = {}
-        """Each foot's previous stance: a trailing foot's toe box carries load in double support only if it did
-        in that stance."""
+        """Each foot's previous stance (a trailing foot's toe bend)."""
         self.history: list[Foothold] = []
         """Every stance that was not wholly supported, in order."""
 
@@ -116,10 +118,11 @@ class FootholdTracker:
             key = (float(at[0]), float(at[1]), float(at[2]))
             self._seen = (anchors, foot, anchor.rotation.T.copy())
             if hold is None or hold.foot != foot or hold.anchor != key:
-                bent = abs(float(anchors.joint_positions.get(spec.toe_joint, 0.0))) > self.s.foothold_toe_bent_rad
+                angle = float(anchors.joint_positions.get(spec.toe_joint, 0.0))
+                bent = abs(angle) > self.s.foothold_toe_bent_rad
                 if hold is not None:
                     self.last[hold.foot] = hold
-                hold = self.hold = Foothold(foot, key, toe_loaded=not bent)
+                hold = self.hold = Foothold(foot, key, toe_loaded=not bent, toe_angle=angle)
                 if bent:
                     self.history.append(hold)
         if foot_wrenches is None or hold is None:
@@ -173,7 +176,9 @@ class FootholdTracker:
             self.history.append(hold)
         hold.cuts.append((t, axis, bound))
 
-    def toe_loaded(self, foot: str) -> bool:
-        """Whether ``foot``, now trailing on its toe, carried load on its toe box in its last stance."""
+    def toe_bend(self, foot: str) -> float:
+        """The toe joint's angle (rad) that ``foot``, now trailing on its toe, kept through its last stance when
+        that stance was anchored with its toe bent; 0 otherwise."""
         last = self.last.get(foot)
-        return last is None or last.toe_loaded
+        return 0.0 if last is None or last.toe_loaded else last.toe_angle
+
