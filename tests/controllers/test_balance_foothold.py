@@ -140,19 +140,23 @@ def test_a_cut_box_admits_exactly_the_cops_inside_it_and_an_empty_box_nothing():
     assert res.status == 0 and abs(res.x[2]) < 1e-12
 
 
-def _bar_walk(tmp_path, balance: dict | None = None):
+OUTER_BAR = {"kind": "bar", "centre": [0.185, 0.485, 0.005], "size": [0.04, 0.26, 0.01]}
+"""The terrain suite's bar along the outer half of the right foot's second foothold (its toe box spans y 0.523 -
+0.597 m, the sole x 0.115 - 0.205 m): the inner half of the sole finds no ground for 10 mm."""
+TOE_BAR = {"kind": "bar", "centre": [0.16, 0.56, 0.005], "size": [0.12, 0.02, 0.01]}
+"""The terrain suite's bar across the toe box of the same foothold."""
+
+
+def _bar_walk(tmp_path, bar: dict = OUTER_BAR, balance: dict | None = None):
     pytest.importorskip("mujoco")
     import yaml
 
     from humanoid_sim.api import run_walk
 
-    # the terrain suite's bar along the outer half of the right foot's second foothold (its toe box spans y 0.523 -
-    # 0.597 m, the sole x 0.115 - 0.205 m): the inner half of the sole finds no ground for 10 mm
-    doc = {"base": str(ROOT / "scripts/params/sim3_zmp.yaml"), "name": "outer_bar",
-           "disturbances": {"terrain": [{"kind": "bar", "centre": [0.185, 0.485, 0.005], "size": [0.04, 0.26, 0.01]}]}}
+    doc = {"base": str(ROOT / "scripts/params/sim3_zmp.yaml"), "name": "bar", "disturbances": {"terrain": [bar]}}
     if balance:
         doc["balance"] = balance
-    f = tmp_path / "outer_bar.yaml"
+    f = tmp_path / "bar.yaml"
     f.write_text(yaml.safe_dump(doc))
     return run_walk(f, "mujoco")
 
@@ -167,5 +171,18 @@ def test_a_foot_on_a_bar_under_its_outer_half_is_cut_and_the_walk_completes_on_m
     # the cut keeps the CoP on the bar: the right foot's outer side is its -y side (sole frame, y left), the bar's
     # inner edge 5 mm outward of the sole's centre line
     assert all(axis == "y" and bound < 0.0 for _, axis, bound in right[0]["cuts"]), right
-    fell = _bar_walk(tmp_path, {"footholds": False})
+    fell = _bar_walk(tmp_path, balance={"footholds": False})
     assert not fell.result.completed and "fall" in fell.result.reason, fell.result.reason
+
+
+@pytest.mark.slow
+def test_a_foot_landing_with_its_toe_on_a_bar_stands_on_its_heel_box_and_the_walk_completes_on_mujoco(tmp_path):
+    """The toe box meets the bar 10 mm up first and bends; the main body lands flat on the floor.  The stance then
+    carries nothing on its toe box, and when the foot trails its heel lifts from the bend.  Without partial
+    footholds the walk falls at the bar."""
+    run = _bar_walk(tmp_path, TOE_BAR)
+    assert run.result.completed, run.result.reason
+    bent = [h for h in run.result.extra["balance_partial_footholds"] if not h["toe_loaded"]]
+    assert [h["foot"] for h in bent] == ["R"], run.result.extra["balance_partial_footholds"]
+    fell = _bar_walk(tmp_path, TOE_BAR, {"footholds": False})
+    assert not fell.result.completed, fell.result.reason
