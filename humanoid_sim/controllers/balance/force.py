@@ -17,12 +17,14 @@ on the base twist, the lean swung by +-7 mm with one stage). A constant force is
 (1.5 s at 0.5 Hz). A short push of force F and duration T would peak in it at about F T L / e (a ninth of the
 force of a 0.1 s push at 0.5 Hz); that lean, against a push already over, made the recovery step overshoot (on
 sim3_zmp the largest backward push survived at mid single support fell from 39.4 to 34.7 N s). A slope's force is
-small and stays; a push's is large and goes. So a force beyond what the lean can answer (``lean_max_m`` m omega^2,
-48 N) is a push: when the observer reads more, and for ``PUSH_HOLD_S`` after, its predicted momentum is set at
-every update to the measured one less what the estimate holds, so the push's impulse is dropped instead of spread
-over the next second (a 0.1 s push of 350 N then moves the estimate by 3.5 N, what reached it before the limit
-was passed). A steady force beyond the limit
-is followed no further than the estimate stood when it was crossed.
+small and stays; a push's is large and goes. So a reading that departs from the estimate by more than the lean can
+answer (``lean_max_m`` m omega^2, 48 N) is a push. From then, and for ``PUSH_HOLD_S``, the observer's predicted
+momentum is set at every update to the measured one less what the estimate holds, so the push's impulse is dropped
+instead of spread over the next second; and the estimate goes back to where it stood when the reading last lay
+within half that limit of it (a 0.1 s push of 350 N then leaves the estimate under 1 N once known, ~50 ms in; without
+the step back it kept the 3.5 N that reached it before, and a 27.5 N s forward push that sim3_zmp survives without
+the estimate felled it). A force that grows by more than the limit within a few tenths of a second is
+taken for a push and not followed.
 
 In the linear inverted pendulum with a constant external acceleration a = f_ext / m,
 c_ddot = omega^2 (c - p) + a: the robot keeps its ZMP p where the plan puts it by leaning its CoM by
@@ -62,6 +64,8 @@ class ForceEstimate:
             raise ValueError(f"limit = {limit!r}: expected a force > 0 N")
         self.limit = float(limit)
         self.hold_until = -math.inf
+        self.quiet = (0.0, 0.0)
+        """The estimate when the observer's reading last lay within half the limit of it, N."""
         """Until when (s) a push's momentum is dropped."""
         self.mass = float(mass)
         self.gain = 2.0 * math.pi * float(cutoff_hz)
@@ -98,16 +102,22 @@ class ForceEstimate:
         self.p_hat = (hx, hy)
         L = self.gain
         rx, ry = L * (px - hx), L * (py - hy)
-        if math.hypot(rx, ry) > self.limit:
+        ox, oy = self.force
+        dev = math.hypot(rx - ox, ry - oy)
+        if dev > self.limit:
+            if t > self.hold_until:      # a new push: back to the estimate from before it showed
+                self.force = ox, oy = self.quiet
             self.hold_until = t + PUSH_HOLD_S
-        if t <= self.hold_until:
+        held = t <= self.hold_until
+        if held:
             # a push: drop its momentum from the prediction, the observer reads the estimate it had
-            rx, ry = self.force
+            rx, ry = ox, oy
             self.p_hat = (px - rx / L, py - ry / L)
         self.raw = (rx, ry)
         a = 1.0 - math.exp(-L * dt)
-        ox, oy = self.force
         self.force = (ox + a * (rx - ox), oy + a * (ry - oy))
+        if not held and dev < 0.5 * self.limit:
+            self.quiet = self.force
         return self.force
 
 
