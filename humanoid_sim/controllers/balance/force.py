@@ -41,8 +41,8 @@ import math
 import numpy as np
 
 PUSH_HOLD_S = 0.25
-"""How long after its reading passed the limit the observer keeps dropping a push's momentum, s (longer than a
-push of the benchmark, 0.1 s; a longer push passes the limit again)."""
+"""How long after its reading left the estimate by more than the limit the observer keeps dropping a push's
+momentum, s (longer than a push of the benchmark, 0.1 s; a longer push leaves it again)."""
 
 
 class ForceEstimate:
@@ -51,8 +51,8 @@ class ForceEstimate:
     Args:
         mass: the controller's model mass m, kg.
         cutoff_hz: the estimate's cut-off f, Hz (> 0).
-        limit: the largest force estimated, N (> 0; infinite: no limit); a larger observer reading is a push,
-            whose momentum the observer drops.
+        limit: the largest departure of the observer's reading from the estimate that is not a push, N (> 0;
+            infinite: none is); a push's momentum the observer drops (module docstring).
     """
 
     def __init__(self, mass: float, cutoff_hz: float, limit: float = math.inf) -> None:
