@@ -50,7 +50,9 @@ def read_rows(out: Path) -> list[dict[str, Any]]:
     if not path.exists():
         return []
     try:
-        rows = pq.read_table(path).to_pylist()
+        # one read of the whole file, then parsed: a sweep still running replaces the file (atomically) as rows
+        # arrive, and a reader that opened it by path more than once could mix two versions
+        rows = pq.read_table(pa.BufferReader(path.read_bytes())).to_pylist()
     except (OSError, pa.ArrowException) as exc:
         raise TableError(f"{path}: cannot read the existing sweep table ({exc}); "
                          "move it away to start afresh") from None
