@@ -40,6 +40,8 @@ import math
 
 import numpy as np
 
+from humanoid_sim.controllers.balance.estimate import low_pass_gain
+
 PUSH_HOLD_S = 0.25
 """How long after its reading left the estimate by more than the limit the observer keeps dropping a push's
 momentum, s (longer than a push of the benchmark, 0.1 s; a longer push leaves it again)."""
@@ -64,11 +66,12 @@ class ForceEstimate:
             raise ValueError(f"limit = {limit!r}: expected a force > 0 N")
         self.limit = float(limit)
         self.hold_until = -math.inf
+        """Until when (s) a push's momentum is dropped."""
         self.quiet = (0.0, 0.0)
         """The estimate when the observer's reading last lay within half the limit of it, N."""
-        """Until when (s) a push's momentum is dropped."""
         self.mass = float(mass)
-        self.gain = 2.0 * math.pi * float(cutoff_hz)
+        self.cutoff_hz = float(cutoff_hz)
+        self.gain = 2.0 * math.pi * self.cutoff_hz
         self.t_last: float | None = None
         self.p_hat = (0.0, 0.0)
         """The predicted horizontal momentum, kg m/s."""
@@ -114,7 +117,7 @@ class ForceEstimate:
             rx, ry = ox, oy
             self.p_hat = (px - rx / L, py - ry / L)
         self.raw = (rx, ry)
-        a = 1.0 - math.exp(-L * dt)
+        a = low_pass_gain(dt, self.cutoff_hz)
         self.force = (ox + a * (rx - ox), oy + a * (ry - oy))
         if not held and dev < 0.5 * self.limit:
             self.quiet = self.force
