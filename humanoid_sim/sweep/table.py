@@ -50,9 +50,11 @@ def read_rows(out: Path) -> list[dict[str, Any]]:
     if not path.exists():
         return []
     try:
-        # one read of the whole file, then parsed: a sweep still running replaces the file (atomically) as rows
-        # arrive, and a reader that opened it by path more than once could mix two versions
-        rows = pq.read_table(pa.BufferReader(path.read_bytes())).to_pylist()
+        # one open file read through: a sweep still running replaces the file (atomically) as rows arrive, and a
+        # reader that opened it by path more than once could mix two versions.  Arrow's own file, read in this
+        # thread: a table over a Python buffer, released by one of Arrow's threads during interpreter exit, aborts
+        with pa.OSFile(str(path)) as f:
+            rows = pq.ParquetFile(f).read(use_threads=False).to_pylist()
     except (OSError, pa.ArrowException) as exc:
         raise TableError(f"{path}: cannot read the existing sweep table ({exc}); "
                          "move it away to start afresh") from None
