@@ -71,8 +71,9 @@ class BalanceSettings:
             beyond the reach (the swing's path on a faster clock; humanoid_sim.controllers.balance.steps).
         step_min_time_s: the shortest remaining swing time step timing may leave, s.
         step_timing_after: the share of the swing (0-1) after which step timing may shorten it, -.
-        step_max_jump_s: how far the plan's clock may move on at an early touchdown step timing made, s (the rest
-            of the time gained, the plan waits).
+        step_max_jump_s: how far the plan's clock may move on at an early touchdown step timing made, s: within
+            it and the time gained, the move that brings the plan's lateral DCM nearest the measured one (the rest,
+            the plan waits).
         step_max_rate: the fastest the swing's path may run, times the plan's speed (>= 1).
         base_velocity: the base twist the controller acts on, on real ground (an engine without a weld model; on
             welds the observation's, exact): ``filtered`` (the sensed twist through a first-order low-pass filter of
@@ -129,9 +130,9 @@ class BalanceSettings:
     step_outward_m: float = 0.15
     step_min_width_m: float = 0.12
     step_timing: bool = True
-    step_min_time_s: float = 0.15
+    step_min_time_s: float = 0.2
     step_timing_after: float = 0.0
-    step_max_jump_s: float = 0.15
+    step_max_jump_s: float = 0.3
     step_max_rate: float = 2.5
     base_velocity: str = "filtered"
     base_velocity_filter_hz: float = 30.0

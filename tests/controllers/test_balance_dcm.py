@@ -129,7 +129,8 @@ def test_step_timing_lands_when_the_error_still_fits_the_reach():
     assert T > s.step_min_time_s
     # the closed form of the rate: remaining planned swing over T (round-off only)
     assert st.clock_rate == pytest.approx(0.35 / T, rel=1e-12)
-    assert st.shortened == 1 and st.plan_jump(0) == s.step_max_jump_s and st.plan_jump(1) == 0.0
+    # no measured DCM given: the whole time gained (the planned swing left, 0.35 s), up to step_max_jump_s
+    assert st.shortened == 1 and st.plan_jump(0) == min(0.35, s.step_max_jump_s) and st.plan_jump(1) == 0.0
     t_sw, rate = st.swing_clock(0, 0.35)
     assert (t_sw, rate) == (0.35, st.clock_rate)
     st.update(0, 0.36, np.array([e, 0.0]), OM, np.eye(3))           # 10 ms later the swing is 10 ms x rate on
@@ -140,6 +141,48 @@ def test_step_timing_lands_when_the_error_still_fits_the_reach():
     # the integrator's tolerance, 1e-11 relative
     assert capture_point(sol.y[:2, -1], sol.y[2:, -1], OM)[0] == pytest.approx(
         s.step_forward_m + s.step_deadband_m, abs=1e-8)
+
+
+def test_the_plan_clock_moves_to_where_its_lateral_dcm_meets_the_measured_one():
+    """At an early touchdown of a shortened swing the plan's clock moves on by the candidate move whose plan DCM
+    (c + c_dot / omega, sideways in the heading frame) is nearest the measured DCM.  The plan's CoM sways left at
+    0.3 m/s; the measured DCM equals the plan's 5/16 of the time gained ahead, so that candidate is chosen exactly.
+    A forward offset of the measured DCM does not count."""
+    s = BalanceSettings(step_max_jump_s=1.0)
+    st = _one_step(s)
+    vy = 0.3
+    st.traj.com_targets = lambda k, t: (np.array([0.0, vy * t]), np.array([0.0, vy]), np.zeros(2), np.zeros(2))
+    gained = 0.7 - 0.35
+    t_star = 0.35 + gained * 5 / 16
+    xi = (0.9, vy * t_star + vy / OM)          # 0.9 m ahead: the forward error that shortened the swing
+    st.update(0, 0.35, np.array([0.1, 0.0]), OM, np.eye(3), xi)
+    assert st.clock_rate > 1.0
+    assert st.plan_jump(0) == pytest.approx(gained * 5 / 16, abs=1e-15)
+    # step_max_jump_s bounds the candidates: the nearest is then the largest allowed move
+    st = _one_step(BalanceSettings(step_max_jump_s=0.05))
+    st.traj.com_targets = lambda k, t: (np.array([0.0, vy * t]), np.array([0.0, vy]), np.zeros(2), np.zeros(2))
+    st.update(0, 0.35, np.array([0.1, 0.0]), OM, np.eye(3), xi)
+    assert st.plan_jump(0) == 0.05
+    # a swing step timing left alone: the plan does not move on
+    st = _one_step(s)
+    st.update(0, 0.35, np.array([0.0, 0.0]), OM, np.eye(3), xi)
+    assert st.clock_rate == 1.0 and st.plan_jump(0) == 0.0
+
+
+def test_the_collision_bound_counts_the_earlier_offsets():
+    """After an earlier step moved the walk 0.15 m to the right (the stance foot landed there), the left foot's
+    inward move is bounded against where the stance foot is, not against its nominal place: the toe points stay
+    step_min_width_m apart sideways."""
+    s = BalanceSettings()
+    st = _one_step(s)
+    st.shift.windows.append(ZmpWindow(-1.0, 1e9, np.array([0.0, -0.15])))   # heading +x: right is -y
+    st.traj.toe_reference = lambda k, t, foot: (np.array([0.0, -0.15, 0.0]), np.zeros(6), np.eye(3))
+    # a huge error to the right (inward for the left foot): the bound binds.  The offset moves at most
+    # max_speed (1.5 m/s), 7.5 mm per 5 ms call: 0.3 s of calls reach it
+    for i in range(61):
+        st.update(0, 0.1 + 0.005 * i, np.array([0.0, -5.0]), OM, np.eye(3))
+    landing_y = 0.2 - 0.15 + st.d[1]                # nominal + the earlier offset + this one
+    assert landing_y - (-0.15) == pytest.approx(s.step_min_width_m, abs=1e-12)
 
 
 def test_step_timing_leaves_small_backward_and_disabled_cases_alone():
@@ -157,9 +200,10 @@ def test_step_timing_leaves_small_backward_and_disabled_cases_alone():
     st = _one_step(BalanceSettings(step_max_rate=3.0))
     st.update(0, 0.35, np.array([1.0, 0.0]), OM, np.eye(3))
     assert st.clock_rate == pytest.approx(0.35 / s.step_min_time_s, rel=1e-12)
-    st = _one_step(s)
+    fast = BalanceSettings(step_min_time_s=0.15)
+    st = _one_step(fast)
     st.update(0, 0.3, np.array([1.0, 0.0]), OM, np.eye(3))
-    assert 0.4 / s.step_min_time_s > s.step_max_rate and st.clock_rate == s.step_max_rate
+    assert 0.4 / fast.step_min_time_s > fast.step_max_rate and st.clock_rate == fast.step_max_rate
     # a fast plan (0.9 m in 0.8 s) catches up with a 0.1 m error in 0.089 s: no more time is gained than that
     st = _one_step(s, forward=0.9)
     st.update(0, 0.35, np.array([0.1, 0.0]), OM, np.eye(3))

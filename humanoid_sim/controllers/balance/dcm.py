@@ -182,7 +182,7 @@ class DcmFeedback:
         st = self.steps
         if st is not None:     # the error against the plan with the earlier moved footholds, not this step's own
             _, (d0x, d0y) = self.shift.at(t, skip=st.window if st.k == k else None)
-            st.update(k, t, (xix - xpx - d0x, xiy - xpy - d0y), om, R_ref)
+            st.update(k, t, (xix - xpx - d0x, xiy - xpy - d0y), om, R_ref, (xix, xiy))
         (dpx, dpy), (dxx, dxy) = self.shift.at(t)
         ex, ey = xix - (xpx + dxx), xiy - (xpy + dxy)
         self.xi_err = np.array((ex, ey))

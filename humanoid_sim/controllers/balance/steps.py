@@ -19,12 +19,13 @@ longest that brings the forward offset within its reach, ln((reach + dead band) 
 - only from ``step_timing_after`` of the swing on.
 The swing's path then runs on its own clock, ``rate`` = (planned remaining swing) / T times as fast as the plan's
 (at most ``step_max_rate``; a rate never decreases within a swing).  At the early touchdown the plan's clock moves
-on by at most ``step_max_jump_s`` toward the double support's start
-(:meth:`humanoid_sim.interfaces.selector.PhaseSelector.advance`) and waits out the rest, as for any early
-touchdown.  Why the bound: a plan that jumps the whole time gained (up to 0.4 s when a swing is shortened from
-its start) puts its lateral sway out of phase with the robot's, which the next steps could not absorb; a plan that
-never moves on leaves a robot pushed forward too far ahead of it (measured in the push benchmark:
-``docs/notes/2026-11-27-step-timing.md``).
+on toward the double support's start (:meth:`humanoid_sim.interfaces.selector.PhaseSelector.advance`) by the
+amount, within the time gained and ``step_max_jump_s``, that brings the plan's lateral DCM nearest the measured one,
+and waits out the rest, as for any early touchdown (:meth:`StepAdjuster.plan_jump`).  Why: the robot's lateral sway
+does not wait for the plan's.  A plan whose clock moves by a fixed amount can leave its lateral DCM a lateral error
+away from the robot's that the next single support cannot absorb (the robot falls sideways one or two steps
+later); a plan that never moves on leaves a robot pushed forward ahead of it (the push benchmark:
+``docs/notes/2026-11-27-step-timing.md`` and ``docs/notes/2026-11-27-plan-clock.md``).
 
 A moved foothold moves the rest of the walk with it: the plan's ZMP is shifted by the offset from the middle of the
 double support that follows the touchdown on, the DCM reference follows by the LIPM's backward recursion
@@ -43,6 +44,9 @@ from humanoid_sim.controllers.balance.dcm import DcmFeedback, ZmpShift, ZmpWindo
 
 _NO_END = 1e9
 """A window's end, s: a moved foothold moves the rest of the walk with it."""
+JUMP_CANDIDATES = 17
+"""Plan-clock moves tried at an early touchdown (:meth:`StepAdjuster.plan_jump`): every 1/16 of the time gained,
+at most ~40 ms apart on the shipped gaits' swings (0.66 s); the plan's DCM moves ~10 mm sideways in that time."""
 
 
 def smoothstep(x: float) -> float:
@@ -103,6 +107,9 @@ class StepAdjuster:
         self.total = np.zeros(2)          # the earlier single supports' offsets, world, m
         self._width_vec = (0.0, 0.0)      # the nominal landing minus the stance toe point, world, m
         self._end = np.zeros(3)           # the nominal landing's toe point, world, m
+        self._xi: tuple[float, float] | None = None   # the last call's measured DCM, world, m
+        self._left = (0.0, 1.0)           # the heading frame's left axis, world
+        self._omega = 1.0                 # the LIPM's omega, rad/s
 
     def _start(self, k: int, t: float) -> None:
         ph = self.traj.phases
@@ -113,18 +120,24 @@ class StepAdjuster:
         self.total = sum((w.d for w in self.shift.windows), np.zeros(2))
         self.window = ZmpWindow(t0, _NO_END, self.d)
         self.shift.windows.append(self.window)
-        # the nominal landing's and the stance foot's toe points, world (the stance foot stays during the swing)
+        # the nominal landing's and the stance foot's toe points, world (the stance foot stays during the swing).
+        # The stance foot is where it landed, moved by the earlier offsets; the nominal landing is not: the step
+        # this swing takes before its own offset is the nominal landing plus those offsets, less the stance
         swing = ph[k].swing_foot
         self._end = np.array(self.traj.phase_targets(k).swing_toe_end, dtype=float)
         stance = np.asarray(self.traj.toe_reference(k, t, "R" if swing == "L" else "L")[0], dtype=float)[:2]
-        self._width_vec = (float(self._end[0] - stance[0]), float(self._end[1] - stance[1]))
+        self._width_vec = (float(self._end[0] + self.total[0] - stance[0]),
+                           float(self._end[1] + self.total[1] - stance[1]))
 
-    def update(self, k: int, t: float, xi_err: np.ndarray, omega: float, R_heading: np.ndarray) -> None:
+    def update(self, k: int, t: float, xi_err: np.ndarray, omega: float, R_heading: np.ndarray,
+               xi: tuple[float, float] | None = None) -> None:
         """One call in single support k at plan time t: the DCM error ``xi_err`` (2,) m against the plan shifted by
-        the earlier moved footholds; ``R_heading`` the trunk's planned orientation (its x axis forward)."""
+        the earlier moved footholds; ``R_heading`` the trunk's planned orientation (its x axis forward); ``xi`` the
+        measured DCM (x, y) m, world (leaned, as the error), kept for :meth:`plan_jump`."""
         info = self.traj.phases[k]
         if info.swing_foot is None:
             return
+        self._xi = xi
         if self.k != k:
             self._start(k, t)
             moved = False
@@ -141,6 +154,7 @@ class StepAdjuster:
         fx, fy = float(R_heading[0, 0]), float(R_heading[1, 0])
         nf = max(math.hypot(fx, fy), 1e-9)
         fx, fy = fx / nf, fy / nf                                   # forward; left is (-fy, fx)
+        self._left, self._omega = (-fy, fx), omega
         ex, ey = float(xi_err[0]), float(xi_err[1])
         e = (fx * ex + fy * ey, fx * ey - fy * ex)
         s = self.s
@@ -192,12 +206,28 @@ class StepAdjuster:
         return end
 
     def plan_jump(self, k: int) -> float:
-        """How far (s) the plan's clock moves on at the touchdown ending single support k: the time its shortened
-        swing gained (the plan's remaining swing at touchdown), up to ``step_max_jump_s``; the rest of an early
-        touchdown the plan waits for, as for any early touchdown."""
+        """How far (s) the plan's clock moves on at the touchdown ending single support k, when step timing
+        shortened that swing: of the moves in [0, the time gained] (the plan's remaining swing at touchdown, at most
+        ``step_max_jump_s``), the one whose plan DCM is nearest the measured one sideways (heading frame; the
+        moved footholds included; the module docstring says why).  0 for a swing step timing left alone; the rest
+        of an early touchdown the plan waits for."""
         if self.k != k or self.clock_rate == 1.0:
             return 0.0
-        return self.s.step_max_jump_s
+        cap = min(max(self.traj.phases[k].t_end - self.t_last, 0.0), self.s.step_max_jump_s)
+        if self._xi is None:
+            return cap
+        (lx, ly), om = self._left, self._omega
+        best, best_e = 0.0, math.inf
+        for i in range(JUMP_CANDIDATES):
+            tau = cap * i / (JUMP_CANDIDATES - 1)
+            tc = self.t_last + tau
+            c, cd, _, _ = self.traj.com_targets(k, tc)
+            _, (dx, dy) = self.shift.at(tc)
+            e = abs(lx * (self._xi[0] - float(c[0]) - float(cd[0]) / om - dx) +
+                    ly * (self._xi[1] - float(c[1]) - float(cd[1]) / om - dy))
+            if e < best_e:
+                best, best_e = tau, e
+        return best
 
     def swing_clock(self, k: int, t: float) -> tuple[float, float]:
         """(t_sw, rate): where single support k's swing is on its planned path (s, the plan's time) and how fast
