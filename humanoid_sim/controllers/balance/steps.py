@@ -45,8 +45,9 @@ from humanoid_sim.controllers.balance.dcm import DcmFeedback, ZmpShift, ZmpWindo
 _NO_END = 1e9
 """A window's end, s: a moved foothold moves the rest of the walk with it."""
 JUMP_CANDIDATES = 17
-"""Plan-clock moves tried at an early touchdown (:meth:`StepAdjuster.plan_jump`): every 1/16 of the time gained,
-at most ~40 ms apart on the shipped gaits' swings (0.66 s); the plan's DCM moves ~10 mm sideways in that time."""
+"""Plan-clock moves tried at an early touchdown (:meth:`StepAdjuster.plan_jump`): every 1/16 of the allowed move,
+at most 19 ms apart with the default ``step_max_jump_s`` (0.3 s), in which the plan's DCM moves at most ~20 mm
+(its speed stays under 1.1 m/s on the shipped zmp gaits)."""
 
 
 def smoothstep(x: float) -> float:
@@ -105,7 +106,7 @@ class StepAdjuster:
         self.shortened = 0                # single supports whose swing was shortened
         self.adjusted = 0                 # single supports whose foothold moved
         self.total = np.zeros(2)          # the earlier single supports' offsets, world, m
-        self._width_vec = (0.0, 0.0)      # the nominal landing minus the stance toe point, world, m
+        self._width_vec = (0.0, 0.0)      # nominal landing + earlier offsets - stance toe point, world, m
         self._end = np.zeros(3)           # the nominal landing's toe point, world, m
         self._xi: tuple[float, float] | None = None   # the last call's measured DCM, world, m
         self._left = (0.0, 1.0)           # the heading frame's left axis, world
