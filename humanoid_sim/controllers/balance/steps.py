@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from humanoid_sim.controllers.balance.dcm import DcmFeedback, ZmpShift, ZmpWindow
+from humanoid_sim.controllers.balance.dcm import DcmFeedback, ZmpShift, ZmpWindow, capture_point
 
 _NO_END = 1e9
 """A window's end, s: a moved foothold moves the rest of the walk with it."""
@@ -110,7 +110,6 @@ class StepAdjuster:
         self._end = np.zeros(3)           # the nominal landing's toe point, world, m
         self._xi: tuple[float, float] | None = None   # the last call's measured DCM, world, m
         self._left = (0.0, 1.0)           # the heading frame's left axis, world
-        self._omega = 1.0                 # the LIPM's omega, rad/s
 
     def _start(self, k: int, t: float) -> None:
         ph = self.traj.phases
@@ -155,7 +154,7 @@ class StepAdjuster:
         fx, fy = float(R_heading[0, 0]), float(R_heading[1, 0])
         nf = max(math.hypot(fx, fy), 1e-9)
         fx, fy = fx / nf, fy / nf                                   # forward; left is (-fy, fx)
-        self._left, self._omega = (-fy, fx), omega
+        self._left = (-fy, fx)
         ex, ey = float(xi_err[0]), float(xi_err[1])
         e = (fx * ex + fy * ey, fx * ey - fy * ex)
         s = self.s
@@ -217,15 +216,15 @@ class StepAdjuster:
         cap = min(max(self.traj.phases[k].t_end - self.t_last, 0.0), self.s.step_max_jump_s)
         if self._xi is None:
             return cap
-        (lx, ly), om = self._left, self._omega
+        (lx, ly), (x, y) = self._left, self._xi
         best, best_e = 0.0, math.inf
         for i in range(JUMP_CANDIDATES):
             tau = cap * i / (JUMP_CANDIDATES - 1)
             tc = self.t_last + tau
             c, cd, _, _ = self.traj.com_targets(k, tc)
+            xp = capture_point(c, cd, self.shift.omega)          # the plan's DCM; the shift's omega is the law's
             _, (dx, dy) = self.shift.at(tc)
-            e = abs(lx * (self._xi[0] - float(c[0]) - float(cd[0]) / om - dx) +
-                    ly * (self._xi[1] - float(c[1]) - float(cd[1]) / om - dy))
+            e = abs(lx * (x - float(xp[0]) - dx) + ly * (y - float(xp[1]) - dy))
             if e < best_e:
                 best, best_e = tau, e
         return best
