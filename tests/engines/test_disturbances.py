@@ -284,3 +284,43 @@ def test_empty_section_leaves_the_walk_bit_for_bit(hm: HumanoidModel) -> None:
         np.testing.assert_array_equal(a.log.arrays()[k], b.log.arrays()[k])
     assert "disturbances" not in a.extra
     assert b.extra["disturbances"] == {"pushes": [], "terrain": [], "sensing": None}
+
+
+def test_a_foot_flat_on_a_slope_has_not_tipped(hm: HumanoidModel) -> None:
+    """The fall test's tilt is read from the ground under the foot.  The standing robot is turned as one body by
+    5 deg about the world x axis, its soles pressed 1 mm into a slope box whose top face is the floor's plane turned
+    the same way: each sole is then 5 deg from the vertical (what the fall test read before: 'tipped' from 3 deg on)
+    and level with the ground it stands on.  Without terrain the tilt is the vertical's, as before."""
+    import pinocchio as pin
+
+    from humanoid_sim.engines.mujoco.contact import bearing_tilt, ground_normal, ground_slope, sole_corners, sole_tilt
+
+    a = math.radians(5.0)
+    R = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(a), -math.sin(a)], [0.0, math.sin(a), math.cos(a)]])
+    lift = np.array([0.0, 0.0, 0.5])                 # the slope's plane 0.5 m up: the floor touches nothing
+    piece = parse_disturbances("test", {"terrain": [
+        {"kind": "slope", "centre": [0.0, 0.0], "size": [2.0, 2.0], "angle_deg": 5, "direction": "up"}]}).terrain[0]
+    half = np.array([2.0, 2.0, 0.05])
+    slope = dataclasses.replace(terrain_boxes([piece], 0.0)[0], centre=R @ np.array([0.0, 0.0, -half[2]]) + lift,
+                                half=half, R=R)
+    robot = MujocoSim(hm, MujocoSettings(), terrain=[slope])
+    assert ground_slope(build_model(hm)) == 0.0
+    assert ground_slope(robot.mm) == pytest.approx(a, abs=1e-12)      # a unit quaternion's matrix: round-off
+    # the initial posture with its lowest sole corner 1 mm below the floor's plane, then turned and lifted
+    q = hm.initial_q().copy()
+    robot.set_state(q, np.zeros(hm.model.nv))
+    mujoco.mj_forward(robot.model, robot.data)
+    low = min(float(np.min(sole_corners(robot.mm, robot.data, f, box)[:, 2])) for f in "RL" for box in (0, 1))
+    q[2] -= low + 0.001
+    q[:3] = R @ q[:3] + lift
+    x, y, z, w = q[3:7]
+    turned = pin.Quaternion(R @ pin.Quaternion(w, x, y, z).toRotationMatrix())
+    q[3:7] = turned.x, turned.y, turned.z, turned.w
+    robot.set_state(q, np.zeros(hm.model.nv))
+    mujoco.mj_forward(robot.model, robot.data)
+    mm, d = robot.mm, robot.data
+    for foot in "RL":
+        # the posture's soles are level to 1e-3 rad; the rest is the turn
+        assert sole_tilt(mm, d, foot) == pytest.approx(a, abs=1e-3)
+        np.testing.assert_allclose(ground_normal(mm, d, foot), R[:, 2], atol=1e-12)   # one geom's axis: round-off
+        assert bearing_tilt(mm, d, foot, 300.0, 20.0) < 1e-3

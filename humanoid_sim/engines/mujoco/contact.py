@@ -286,8 +286,47 @@ def bearing_tilt(mm: MujocoModel, data: mujoco.MjData, foot: str, main_load: flo
     """The tilt (rad) of the part of ``foot`` that bears its load: its main body's sole (:func:`sole_tilt`), or,
     when the main body carries less than ``f_min`` (N; ``main_load`` its normal force), its toe body's.  A foot
     on its toe with its heel lifted (a double support's toe-off) has a tilted main body on a flat toe box: it has
-    not tipped."""
-    return sole_tilt(mm, data, foot, 1 if main_load >= f_min else 0)
+    not tipped.  With terrain boxes in the model the tilt is measured from the ground under the foot
+    (:func:`ground_normal`): a foot standing flat on a slope has not tipped either."""
+    box = 1 if main_load >= f_min else 0
+    n = ground_normal(mm, data, foot) if mm.terrain_geoms else None
+    if n is None or (n[0] == 0.0 and n[1] == 0.0):      # level ground: the vertical's tilt, as on the floor
+        return sole_tilt(mm, data, foot, box)
+    z = data.xmat[mm.foot_bodies[foot][box]].reshape(3, 3)[:, 2]
+    return float(np.arctan2(np.linalg.norm(np.cross(z, n)), float(z @ n)))
+
+
+def ground_normal(mm: MujocoModel, data: mujoco.MjData, foot: str) -> np.ndarray:
+    """The unit normal (3,) of the ground ``foot`` presses on, world frame: the mean of the top-face normals of the
+    geoms its sole boxes touch (the floor's is +z; a terrain box's its z axis, whichever face the contact is on),
+    weighted by the contacts' normal forces; +z when the foot presses on nothing."""
+    soles = mm.sole_geoms[foot]
+    terrain = mm.terrain_geoms
+    up = np.array([0.0, 0.0, 1.0])
+    n = np.zeros(3)
+    f6 = np.zeros(6)
+    for i in range(data.ncon):
+        g1, g2 = (int(g) for g in data.contact.geom[i])
+        other = g2 if g1 in soles else g1 if g2 in soles else -1
+        if other < 0:
+            continue
+        mujoco.mj_contactForce(mm.model, data, i, f6)
+        axis = data.geom_xmat[other].reshape(3, 3)[:, 2] if other in terrain else up
+        n += max(float(f6[0]), 0.0) * axis
+    size = float(np.linalg.norm(n))
+    return n / size if size > 0.0 else up
+
+
+def ground_slope(mm: MujocoModel) -> float:
+    """The largest tilt (rad) of a terrain box's top face from the horizontal (0 without terrain): how far a foot
+    standing flat on the terrain can be tilted from the vertical.  Terrain boxes are static geoms of the world
+    body: their model orientation is their world one."""
+    out = 0.0
+    R = np.zeros(9)
+    for g in mm.terrain_geoms:
+        mujoco.mju_quat2Mat(R, mm.model.geom_quat[g])
+        out = max(out, float(np.arctan2(np.hypot(R[2], R[5]), R[8])))
+    return out
 
 
 class SlipMeter:

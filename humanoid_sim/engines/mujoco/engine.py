@@ -41,8 +41,10 @@ Falls (:meth:`check`, at every loop step; each ends the run with a :class:`Mujoc
 Body-17 CoM below ``scenario.simulation.fall_height_m``; the lower trunk's z axis more than
 :attr:`MujocoEngineSettings.trunk_tilt_fall_rad` (45 deg) from the vertical; or the only supporting foot (the other
 carries less than ``contact_force_N``) tipping onto an edge: its centre of pressure within ``edge_tolerance_m``
-(2 mm) of a sole edge (toe, heel, outer, inner) while its main body is tilted more than ``edge_tilt_rad`` (3 deg,
-ten times the tilt penetration alone gives a flat sole).  A flat-footed controller cannot recover from that: the
+(2 mm) of a sole edge (toe, heel, outer, inner) while the sole box bearing its load is tilted more than
+``edge_tilt_rad`` (3 deg, ten times the tilt penetration alone gives a flat sole) from the ground under it (the
+vertical on the floor; with terrain boxes, the top faces the foot presses on: a foot flat on a slope has not tipped;
+:func:`humanoid_sim.engines.mujoco.contact.bearing_tilt`).  A flat-footed controller cannot recover from that: the
 ground can no longer push back on that side.
 
 Logged signals (same schema as the other engines, ``results.SIGNALS``), per loop step, at the state at the step's
@@ -89,7 +91,7 @@ import pinocchio as pin
 
 from humanoid_sim.dynamics.contact import record_anchors
 from humanoid_sim.engines.mujoco import compiled as mjc
-from humanoid_sim.engines.mujoco.contact import bearing_tilt, foot_contacts, sole_cop
+from humanoid_sim.engines.mujoco.contact import bearing_tilt, foot_contacts, ground_slope, sole_cop
 from humanoid_sim.engines.mujoco.disturb import disturbance_info, scenario_pusher, scenario_terrain
 from humanoid_sim.engines.mujoco.ground import GroundMeter, ReferenceGroundMeter, end_loads, trunk_tilt
 from humanoid_sim.engines.mujoco.model import MujocoModelError, MujocoSettings
@@ -260,8 +262,12 @@ class MujocoEngine:
     def _reset_measures(self) -> None:
         """A new run's ground measures (:attr:`ground`, reading the settings' and the scenario's thresholds now)."""
         s = self.settings
+        # a foot flat on a slope is tilted from the vertical by the slope: the edge test then reads the tilt from
+        # the ground under the foot (contact.bearing_tilt), which is at most the slope larger
+        self._slope = ground_slope(self.mm)
         if self.compiled:
-            limits = (s.edge_tilt_rad - _NEAR, self.sc.simulation.fall_height_m, s.trunk_tilt_fall_rad - _NEAR)
+            limits = (s.edge_tilt_rad - _NEAR - self._slope, self.sc.simulation.fall_height_m,
+                      s.trunk_tilt_fall_rad - _NEAR)
             self.ground = GroundMeter(self.mm, s.contact_force_N, limits)
         else:
             self.ground = ReferenceGroundMeter(self.mm, s.contact_force_N)
@@ -428,7 +434,7 @@ class MujocoEngine:
             i = loaded - 1
             f = FEET[i]
             # its CoP's edges only when its sole tilts (sole_cop costs ~0.1 ms, and this runs at every update)
-            if out[7 + i] > s.edge_tilt_rad - _NEAR:
+            if out[7 + i] > s.edge_tilt_rad - _NEAR - self._slope:
                 tilt = bearing_tilt(mm, data, f, out[2 * i + 1], s.contact_force_N)
                 cop = sole_cop(mm, data, foot_contacts(mm, data)[f], s.edge_tolerance_m) \
                     if tilt > s.edge_tilt_rad else None
