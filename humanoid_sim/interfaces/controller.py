@@ -87,6 +87,12 @@ class Observation:
     plan_delay: float = 0.0
     foot_wrenches: np.ndarray | None = None
 
+    def with_velocity(self, v: np.ndarray) -> Observation:
+        """This observation with ``v`` in place of its velocity (a new record; ``dataclasses.replace`` does the
+        same at four times the cost, on a path that runs at every control call)."""
+        return Observation(self.t, self.k, self.phase, self.q, v, self.anchors, self.stage, self.plan_delay,
+                           self.foot_wrenches)
+
 
 @dataclass
 class Command:
@@ -157,6 +163,12 @@ def as_command(out: Any, nv: int, name: str, names: CoordinateNames | None = Non
         ControllerError: naming the controller, for anything else than a Command or an array of shape (26,) /
             (nv,), for non-finite values (naming their joints) and for forces on the (unactuated) base rows.
     """
+    if type(out) is Command:    # the usual answer, checked first without the general path's set-up
+        tau = out.tau
+        if type(tau) is np.ndarray and tau.shape == (nv,) and tau.dtype == np.float64 and \
+                np.isfinite(np.add.reduce(tau)) and not (tau[0] or tau[1] or tau[2] or tau[3] or tau[4] or tau[5]):
+            return out
+
     def label(size: int, i: int) -> str:
         return f"entry {i}" if names is None else names.component(size, i)
 

@@ -263,6 +263,8 @@ def test_the_com_plan_velocity_is_the_derivative_of_its_position():
                            phases=[SimpleNamespace(t_start=0.0, duration=2.0)])
     traj._clamp = lambda k, tt: min(max(tt, 0.0), 2.0)
     traj._check = lambda k: k
+    traj._grid = (0.0, traj.plan.T)                               # what set_hip_plan keeps for the queries
+    traj._com_rows = tuple(a.tolist() for a in traj.com_plan[:3])
     h = 1e-5
     for tt in (0.333, 1.017):
         p, v, a, z = ZmpPreviewTrajectory.com_targets(traj, 0, tt)

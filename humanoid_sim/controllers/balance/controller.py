@@ -78,7 +78,6 @@ Units: SI (m, rad, N, N m, s).
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
@@ -248,7 +247,7 @@ class BalanceController:
     def __call__(self, obs: Observation) -> Command:
         self.calls += 1
         if self._twist is not None:
-            obs = replace(obs, v=self._twist(obs.t, obs.v))
+            obs = obs.with_velocity(self._twist(obs.t, obs.v))
         k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
         s = self.settings
         kin_data = None
@@ -558,18 +557,19 @@ class BalanceController:
             bounds = self._bounds[key] = (sense, np.full(len(lo), _DAQP_INF))
         sense_all, hi_all = bounds
         hi_all[:ne] = lo[:ne]
-        for level, keep in ((0, None), (1, ~cop_rows), (2, np.zeros(len(cop_rows), bool))):
-            if keep is None:
-                A, lo_k, hi, sense = C, lo, hi_all, sense_all
-            else:
-                rows = np.concatenate([np.ones(ne, dtype=bool), keep])
-                A, lo_k, hi, sense = C[rows], lo[rows], hi_all[rows], sense_all[rows]
-            x, _, flag, _ = self._daqp(G, -g, A, hi, lo_k, sense)
+        f = -g
+        x, _, flag, _ = self._daqp(G, f, C, hi_all, lo, sense_all)
+        if flag == _DAQP_OPTIMAL:        # the usual case: every row kept
+            return np.asarray(x, dtype=float), 0
+        for level in (1, 2):
+            keep = ~cop_rows if level == 1 else np.zeros(len(cop_rows), bool)
+            rows = np.concatenate([np.ones(ne, dtype=bool), keep])
+            x, _, flag, _ = self._daqp(G, f, C[rows], hi_all[rows], lo[rows], sense_all[rows])
             if flag != _DAQP_OPTIMAL:
                 continue
             if level == 1:
                 self.relaxed_cop += 1
-            elif level == 2:
+            else:
                 self.relaxed_all += 1
             return np.asarray(x, dtype=float), level
         raise ControllerError("balance controller: the QP has no solution even without contact inequalities "

@@ -142,8 +142,10 @@ class DcmFeedback:
         else:
             d = data
             pin.centerOfMass(model, d, pin.KinematicLevel.VELOCITY, False)
-        self.c, self.c_dot = d.com[0], d.vcom[0]
-        self.xi = capture_point(self.c, self.c_dot, self.omega)
+        c, cd = self.c, self.c_dot = d.com[0], d.vcom[0]
+        om = self.omega
+        # capture_point's arithmetic in floats (the same numbers; this runs at every call)
+        self.xi = np.array((float(c[0]) + float(cd[0]) / om, float(c[1]) + float(cd[1]) / om))
         f = self.hip_frame
         pin.updateFramePlacement(model, d, f)
         return d.oMf[f].translation, pin.getFrameVelocity(model, d, f, LWA).linear

@@ -239,11 +239,17 @@ class StepAdjuster:
     def swing_target(self, k: int, swing: tuple) -> tuple:
         """Single support k's swing targets (``Targets.swing``) with the toe point moved by the offsets (the earlier
         ones and this one), ramped in over the swing's progress (smoothstep to full at ``freeze``)."""
-        if self.k != k or not (np.any(self.d) or np.any(self.total)):
+        if self.k != k:
+            return swing
+        # in floats (the same numbers as the 2-vector expression; this runs at every call of a swing)
+        (d0, d1), (t0, t1) = self.d.tolist(), self.total.tolist()
+        if not (d0 or d1 or t0 or t1):
             return swing
         foot, pt, v6, Rr, a_ff, xr = swing
         pt = pt.copy()
-        pt[:2] += (self.total + self.d) * smoothstep(self.ratio / self.freeze)
+        ramp = smoothstep(self.ratio / self.freeze)
+        pt[0] += (t0 + d0) * ramp
+        pt[1] += (t1 + d1) * ramp
         return foot, pt, v6, Rr, a_ff, xr
 
 

@@ -26,17 +26,17 @@ def swing_targets(traj, s, k: int, t: float, foot: str, real_ground: bool, own: 
         t: the plan's time, s (the swing ramp and the heel return run on it).
         foot: "R" or "L", the swing foot.
         real_ground: the engine has unilateral contact (the landing's depth and search apply).
-        own: ``traj`` is one of the package's trajectories (``toe_velocity`` answers alone).
+        own: ``traj`` is one of the package's trajectories (``swing_feedforward`` answers in one query).
         t_sw: the swing's clock, s (None: ``t``).
         rate: d t_sw / dt (>= 1).
     """
     info = traj.phases[k]
     ts = t if t_sw is None else t_sw
-    pt, v6, Rr = traj.toe_reference(k, ts, foot)
     hdt = s.ff_dt_s
     if own:
-        a_ff = (traj.toe_velocity(k, ts + hdt, foot) - traj.toe_velocity(k, ts - hdt, foot)) / (2.0 * hdt)
+        pt, v6, Rr, a_ff = traj.swing_feedforward(k, ts, foot, hdt)
     else:
+        pt, v6, Rr = traj.toe_reference(k, ts, foot)
         a_ff = (traj.toe_reference(k, ts + hdt, foot)[1] - traj.toe_reference(k, ts - hdt, foot)[1]) / (2.0 * hdt)
     if rate != 1.0:
         v6 = v6 * rate

@@ -61,6 +61,15 @@ def _ro(a: np.ndarray) -> np.ndarray:
     return a
 
 
+_ZERO6 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def _central(vp: tuple[float, ...], vm: tuple[float, ...], h: float) -> np.ndarray:
+    """(vp - vm) / 2h elementwise (6,): NumPy's ``(np.array(vp) - np.array(vm)) / (2.0 * h)``, the same numbers."""
+    d = 2.0 * h
+    return np.array([(p - m) / d for p, m in zip(vp, vm)])
+
+
 def _rz(yaw: float) -> np.ndarray:
     c, s = math.cos(yaw), math.sin(yaw)
     return np.array(((c, -s, 0.0), (s, c, 0.0), (0.0, 0.0, 1.0)))
@@ -420,6 +429,13 @@ class ReferenceTrajectory:
             yaw, yawd, yawdd = eval_cubic(sg.e, t)        # theta_hor (L1440-1490)
         return math.sin(phi), math.cos(phi), thd, thdd, yaw, yawd, yawdd
 
+    def _yaw_scalars(self, ph: PhaseInfo, sg: _Segment, t: float) -> tuple[float, float, float]:
+        """:meth:`_hip_scalars`' yaw and its two rates alone (the same numbers)."""
+        if ph.is_ssp:
+            th, thd, thdd = eval_cubic(sg.c, t)
+            return sg.theta_cs + sg.s * th, sg.s * thd, sg.s * thdd
+        return eval_cubic(sg.e, t)
+
     def _clamped(self, phase: int, t: float) -> tuple[PhaseInfo, _Segment, float]:
         """Phase, segment and phase time clamped to the phase's nominal window, for global time t (s)."""
         ph = self.phases[phase]
@@ -450,9 +466,20 @@ class ReferenceTrajectory:
 
     def toe_velocity(self, phase: int, t: float, foot: str) -> np.ndarray:
         """:meth:`toe_reference`'s velocity (6,) alone; the same numbers."""
+        return np.array(self._toe_velocity(phase, t, foot))
+
+    def swing_feedforward(self, phase: int, t: float, foot: str, h: float) -> tuple[np.ndarray, ...]:
+        """:meth:`toe_reference` at global time t with the central difference of :meth:`toe_velocity` over t +- h
+        (s): toe point (3,), velocity (6,), orientation (3x3) and acceleration (6,), (v(t + h) - v(t - h)) / 2h:
+        the balance controller's swing feed-forward in one query (the same numbers as the four)."""
+        pt, v6, R = self.toe_reference(phase, t, foot)
+        return pt, v6, R, _central(self._toe_velocity(phase, t + h, foot), self._toe_velocity(phase, t - h, foot), h)
+
+    def _toe_velocity(self, phase: int, t: float, foot: str) -> tuple[float, ...]:
+        """:meth:`toe_velocity` as six floats."""
         ph, sg, tc = self._clamped(phase, t)
         if self._feet[phase][foot][0] == "fix":
-            return np.zeros(6)
+            return _ZERO6
         w = sg.swing
         s = sg.s
         if tc <= w.t_z:
@@ -463,8 +490,7 @@ class ReferenceTrajectory:
         zd = eval_quartic(w.h, tc)[1]
         phi = sg.theta_cs + s * (w.theta_i + rot)
         sp, cp = math.sin(phi), math.cos(phi)
-        return np.array((s * rd * sp + r * rotd * cp, -s * rd * cp + r * rotd * sp, zd, 0.0, 0.0,
-                         eval_cubic(w.j, tc)[1]))
+        return (s * rd * sp + r * rotd * cp, -s * rd * cp + r * rotd * sp, zd, 0.0, 0.0, eval_cubic(w.j, tc)[1])
 
     def toe_reference(self, phase: int, t: float, foot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The controller's swing query: toe point (3,), [toe-point velocity; foot angular velocity] (6,) and

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from humanoid_sim.references.chapter3 import PhaseInfo, PhaseTargets, ReferenceTrajectory, RefSample, TrajectoryError
-from humanoid_sim.references.chapter3.generator import DSP_TABLE, SSP_TABLE_SIZE, _rz
+from humanoid_sim.references.chapter3.generator import DSP_TABLE, SSP_TABLE_SIZE, _central, _rz
 from humanoid_sim.references.chapter3.polynomials import cubic_bvp, eval_cubic
 
 from .errors import GaitError
@@ -53,7 +53,7 @@ def hermite_xy(t: float, t0: float, T: float, xy: np.ndarray, vxy: np.ndarray
                ) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
     """:func:`hermite` as (x, y) float pairs: scalar arithmetic, the controller's per-call path (a 2-vector numpy
     operation costs ~0.5 us, and the three derivatives take ~30 of them).  The same operations in the same order:
-    the same numbers."""
+    the same numbers.  ``xy`` and ``vxy`` may be (n, 2) arrays or lists of (x, y) rows."""
     n = len(xy)
     u = (t - t0) / T
     i = min(max(int(math.floor(u)), 0), n - 2)
@@ -64,9 +64,10 @@ def hermite_xy(t: float, t0: float, T: float, xy: np.ndarray, vxy: np.ndarray
     e00, e10, e01, e11 = 12 * s - 6, 6 * s - 4, -12 * s + 6, 6 * s - 2
     TT = T * T
     out = []
+    xa, xb, va, vb = xy[i], xy[i + 1], vxy[i], vxy[i + 1]    # rows (lists on the per-call path: cheaper to index)
     for c in (0, 1):
-        p0, p1 = float(xy[i, c]), float(xy[i + 1, c])
-        m0, m1 = T * float(vxy[i, c]), T * float(vxy[i + 1, c])
+        p0, p1 = float(xa[c]), float(xb[c])
+        m0, m1 = T * float(va[c]), T * float(vb[c])
         out.append((h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1,
                     (d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1) / T,
                     (e00 * p0 + e10 * m0 + e01 * p1 + e11 * m1) / TT))
@@ -140,22 +141,34 @@ class ZmpPreviewTrajectory:
         self._hip_memo: tuple = (math.nan,)
         self._xy = np.ascontiguousarray(plan.xy, dtype=float)
         self._vxy = np.ascontiguousarray(plan.vxy, dtype=float)
+        # the per-call queries read the grids as lists of float rows and its start and step as floats (the same
+        # numbers: indexing a list costs a tenth of a numpy element read)
+        self._grid = (float(plan.t[0]), plan.T)
+        self._rows = (self._xy.tolist(), self._vxy.tolist())
         self.com_plan = None
+        self._com_rows: tuple[list, list, list] | None = None
         if plan.com_xy is not None and plan.com_vxy is not None and plan.zmp_xy is not None and plan.com_z:
             self.com_plan = (np.ascontiguousarray(plan.com_xy, dtype=float),
                              np.ascontiguousarray(plan.com_vxy, dtype=float),
                              np.ascontiguousarray(plan.zmp_xy, dtype=float), float(plan.com_z))
+            self._com_rows = (self.com_plan[0].tolist(), self.com_plan[1].tolist(), self.com_plan[2].tolist())
 
     def _hip(self, tg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Planned Body-17 CoM position, velocity, acceleration (3,) at global time tg (s)."""
         if self.plan is None:
             p = self.inner.sample(0, 0.0).hip_p
             return p.copy(), np.zeros(3), np.zeros(3)
-        if tg != self._hip_memo[0]:   # a controller asks for the position and the acceleration at one time
-            p, v, a = hermite_xy(tg, float(self.plan.t[0]), self.plan.T, self._xy, self._vxy)
-            self._hip_memo = (tg, (p[0], p[1], self.hip_z), (v[0], v[1], 0.0), (a[0], a[1], 0.0))
-        _, p, v, a = self._hip_memo
+        _, p, v, a = self._hip_tuples(tg)
         return np.array(p), np.array(v), np.array(a)
+
+    def _hip_tuples(self, tg: float) -> tuple:
+        """(tg, position, velocity, acceleration) of the planned Body-17 CoM at global time tg as float triples
+        (a plan is set), memoised: a controller asks for the position and the acceleration at one time."""
+        if tg != self._hip_memo[0]:
+            t0, T = self._grid
+            p, v, a = hermite_xy(tg, t0, T, *self._rows)
+            self._hip_memo = (tg, (p[0], p[1], self.hip_z), (v[0], v[1], 0.0), (a[0], a[1], 0.0))
+        return self._hip_memo
 
     def _clamp(self, k: int, t: float) -> float:
         ph = self.phases[k]
@@ -226,13 +239,17 @@ class ZmpPreviewTrajectory:
         velocity (6,), orientation (3x3), acceleration (6,) (both queries are read from it)."""
         k = self._check(phase)
         tc = self._clamp(k, t)
-        p, v, a = self._hip(tc)
+        if self.plan is None:
+            p, v, a = self._hip(tc)
+        else:
+            _, p, v, a = self._hip_tuples(tc)
+            p = np.array(p)
         if k == 0:
             yaw, yawd, yawdd = eval_cubic(self._lead_yaw, tc - self.phases[0].t_start)
         else:
             inner = self.inner
             ph, sg, tci = inner._clamped(k - 1, t - self.lead)
-            yaw, yawd, yawdd = inner._hip_scalars(ph, sg, tci)[4:]
+            yaw, yawd, yawdd = inner._yaw_scalars(ph, sg, tci)
         return (p, np.array((v[0], v[1], 0.0, 0.0, 0.0, yawd)), _rz(yaw),
                 np.array((a[0], a[1], 0.0, 0.0, 0.0, yawdd)))
 
@@ -243,13 +260,15 @@ class ZmpPreviewTrajectory:
         if self.com_plan is None or self.plan is None:
             return None
         tc = self._clamp(self._check(phase), t)
-        xy, vxy, zmp, _ = self.com_plan
-        t0, T = float(self.plan.t[0]), self.plan.T
+        xy, vxy, zmp = self._com_rows
+        t0, T = self._grid
         p, v, a = hermite_xy(tc, t0, T, xy, vxy)
         u = min(max((tc - t0) / T, 0.0), len(zmp) - 1.0)
         i = min(int(u), len(zmp) - 2)
         f = u - i
-        return np.array(p), np.array(v), np.array(a), zmp[i] * (1.0 - f) + zmp[i + 1] * f
+        za, zb = zmp[i], zmp[i + 1]
+        g = 1.0 - f
+        return np.array(p), np.array(v), np.array(a), np.array((za[0] * g + zb[0] * f, za[1] * g + zb[1] * f))
 
     def toe_velocity(self, phase: int, t: float, foot: str) -> np.ndarray:
         """:meth:`toe_reference`'s velocity (6,) alone; the same numbers."""
@@ -257,6 +276,19 @@ class ZmpPreviewTrajectory:
         if k == 0:
             return np.zeros(6)
         return self.inner.toe_velocity(k - 1, t - self.lead, foot)
+
+    def swing_feedforward(self, phase: int, t: float, foot: str, h: float) -> tuple[np.ndarray, ...]:
+        """:meth:`toe_reference` at global time t with the central difference of :meth:`toe_velocity` over t +- h
+        (the generator's :meth:`~humanoid_sim.references.chapter3.generator.ReferenceTrajectory.swing_feedforward`;
+        the same numbers as the four queries)."""
+        k = self._check(phase)
+        if k == 0:
+            p, R, _ = self._feet0[foot]
+            return p, np.zeros(6), R, np.zeros(6)
+        inner, lead = self.inner, self.lead
+        pt, v6, R = inner.toe_reference(k - 1, t - lead, foot)
+        return pt, v6, R, _central(inner._toe_velocity(k - 1, t + h - lead, foot),
+                                   inner._toe_velocity(k - 1, t - h - lead, foot), h)
 
     def toe_reference(self, phase: int, t: float, foot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         k = self._check(phase)
