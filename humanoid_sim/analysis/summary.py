@@ -109,7 +109,9 @@ def contact_audit(result: SimResult, scenario: Any, hm: Any, phase_names: list[s
         return {"error": str(exc)}, None
     if real_ground:   # soft ground: contacts act below z = 0, which moves their CoP on z = 0 (real_ground_edge_tol)
         tol = real_ground_edge_tol(mu, result.extra["ground"])
-        report, full = replace(report, edge_tol=tol), (report if full is report else replace(full, edge_tol=tol))
+        same = full is report      # no full-rate trace (a run stopped at its first step, or interrupted)
+        report = replace(report, edge_tol=tol)
+        full = report if same else replace(full, edge_tol=tol)
     out = full.summary()
     out["rate"] = {"period_s": trace.period_s if full is not report else None,
                    "rows": len(full.t), "source": "full-rate trace" if full is not report else "log"}

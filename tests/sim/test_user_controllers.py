@@ -162,3 +162,51 @@ def test_walk_prints_the_helpers_file_and_line(failing_module) -> None:
     assert proc.returncode == 1, (proc.returncode, proc.stdout, proc.stderr)
     assert f'File "{failing_module / "deep_helper.py"}", line 3, in lookup' in proc.stderr, proc.stderr
     assert "IndexError" in proc.stderr
+
+
+class _FailsAtOnce:
+    name = "fails_at_once"
+
+    def setup(self, ctx):
+        pass
+
+    def __call__(self, obs):
+        raise KeyError("theta99")
+
+
+@pytest.mark.parametrize("engine", ["pinocchio", "mujoco"])
+def test_a_controller_failing_at_its_first_call_is_summarised(hm, sim1, engine) -> None:
+    """A controller that raises at its very first call (a new controller's usual first run) ends the run with its
+    reason, and the run is summarised like any other.  On real ground the summary's audit once crashed on the
+    missing full-rate trace (an AttributeError instead of the controller's message)."""
+    from humanoid_sim import api
+
+    sim = Simulator(hm, sim1, engine=engine, controller=_FailsAtOnce())
+    run = api.finish(sim, sim.run(t_end=0.1))
+    assert run.result.status is RunStatus.FAILED
+    assert "controller 'fails_at_once' raised KeyError at t = 0.000 s: 'theta99'" in run.result.reason
+    assert run.summary["status"] == "failed" and "KeyError" in run.summary["reason"]
+    assert run.summary["contact"]["rate"]["source"] == "log"
+
+
+class _StoppedByCtrlC:
+    name = "stopped"
+
+    def setup(self, ctx):
+        pass
+
+    def __call__(self, obs):
+        if obs.t >= 0.02:
+            raise KeyboardInterrupt
+        return np.zeros(26)
+
+
+def test_a_walk_interrupted_on_real_ground_is_summarised(hm, sim1) -> None:
+    """Ctrl-C during a MuJoCo walk: the summary is made from the log (the full-rate trace is not audited after an
+    interrupt); it raised AttributeError, as a first-call failure did."""
+    from humanoid_sim import api
+
+    sim = Simulator(hm, sim1, engine="mujoco", controller=_StoppedByCtrlC())
+    run = api.finish(sim, sim.run(t_end=0.1))
+    assert run.result.status is RunStatus.INTERRUPTED
+    assert run.summary["status"] == "interrupted" and run.summary["contact"]["rate"]["source"] == "log"
