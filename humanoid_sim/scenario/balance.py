@@ -19,7 +19,7 @@ BASE_VELOCITIES = ("filtered", "measured")
 """The values of ``BalanceSettings.base_velocity``."""
 _CHOICES = ("feedback", "base_velocity")
 _FLAGS = ("time_shift", "lazy_torque_limits", "step_adjustment", "step_timing", "external_force",
-          "footholds")
+          "footholds", "flat_trail", "flat_lead_in")
 
 
 @dataclass(frozen=True)
@@ -93,6 +93,11 @@ class BalanceSettings:
         foothold_cut_margin_m: how far inside a cut the CoP stays, m.
         foothold_min_width_m: the least width a cut leaves on either side of it, m.
         foothold_toe_bent_rad: the toe-joint angle at anchoring beyond which a foot's toe box carries no load, rad.
+        flat_trail: on real ground, hold a trailing foot whose toe stood bent on something flat on its heel box
+            through the double support (no toe-off), instead of by that toe.
+        flat_lead_in: on real ground, hold the standing lead-in's trailing foot flat on its heel box until its
+            toe-off (the last ``heel_lift_time_s``), instead of by its toe from the start (off by default: see
+            docs/controllers.md).
     """
 
     hip_omega: float = 12.0
@@ -144,6 +149,8 @@ class BalanceSettings:
     foothold_cut_margin_m: float = 0.005
     foothold_min_width_m: float = 0.015
     foothold_toe_bent_rad: float = 0.05
+    flat_trail: bool = True
+    flat_lead_in: bool = False
 
     def __post_init__(self) -> None:
         if self.feedback not in FEEDBACKS:

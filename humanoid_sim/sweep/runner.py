@@ -106,10 +106,12 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None  # inherited by the workers
     try:
         # the scheduler always serves HTTP (health, metrics; the dashboard when bokeh is installed): on
-        # 127.0.0.1, on a free port
+        # 127.0.0.1, on a free port.  Its and the workers' logs below CRITICAL are silenced: after Ctrl-C a
+        # worker's heartbeat to the closing scheduler can log an ERROR with a traceback; a walk's own failure is in
+        # its row, and a worker that died is retried and reported by the runner
         with dask.config.set(LOCAL_WORKER_CONFIG):
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                   dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
+                                   dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
     finally:
         if main:
             signal.signal(signal.SIGINT, previous)

@@ -213,7 +213,8 @@ def test_step_timing_leaves_small_backward_and_disabled_cases_alone():
 def test_a_faster_swing_clock_scales_the_path_velocity_and_acceleration():
     """swing_targets on a swing clock t_sw = t0 + r (t - t0): the toe's velocity is the real-time derivative of its
     position, r x the path's, and its feed-forward acceleration r^2 x the path's (finite differences of an analytic
-    path)."""
+    path).  Through the trajectory interface (``own`` False: toe_reference alone); the package's trajectories
+    answer the same in one query (tests/references/test_zmp_walk.py)."""
     def toe(k, t, foot):
         p = np.array([0.1 * t, 0.2 * t * t, 0.05 * math.sin(3.0 * t)])
         v = np.array([0.1, 0.4 * t, 0.15 * math.cos(3.0 * t), 0.0, 0.0, 0.0])
@@ -225,10 +226,10 @@ def test_a_faster_swing_clock_scales_the_path_velocity_and_acceleration():
     r, t0, t = 1.8, 0.2, 0.3
     def clock(tt):
         return t0 + r * (tt - t0)
-    _, p, v, _, a, _ = swing_targets(traj, s, 0, t, "L", False, True, clock(t), r)
+    _, p, v, _, a, _ = swing_targets(traj, s, 0, t, "L", False, False, clock(t), r)
     h = 1e-5
-    pos = [swing_targets(traj, s, 0, t + d, "L", False, True, clock(t + d), r)[1] for d in (-h, h)]
-    vel = [swing_targets(traj, s, 0, t + d, "L", False, True, clock(t + d), r)[2][:3] for d in (-h, h)]
+    pos = [swing_targets(traj, s, 0, t + d, "L", False, False, clock(t + d), r)[1] for d in (-h, h)]
+    vel = [swing_targets(traj, s, 0, t + d, "L", False, False, clock(t + d), r)[2][:3] for d in (-h, h)]
     # central differences of smooth functions: O(h^2) ~ 1e-10 plus round-off / h ~ 1e-11
     np.testing.assert_allclose(v[:3], (pos[1] - pos[0]) / (2 * h), atol=1e-7)
     # the feed-forward is itself a central difference over ff_dt_s = 1 ms: O(1e-6) of the analytic value

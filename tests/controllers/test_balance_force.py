@@ -125,7 +125,8 @@ def test_bad_arguments_and_settings_are_refused():
         parse_balance("f.yaml", {"external_force": "yes"})
 
 
-def _incline_run(tmp_path, direction: str, until: float | None, balance: dict | None = None):
+def _incline_run(tmp_path, direction: str, until: float | None, balance: dict | None = None,
+                 sensing: dict | None = None):
     pytest.importorskip("mujoco")
     import yaml
 
@@ -133,6 +134,8 @@ def _incline_run(tmp_path, direction: str, until: float | None, balance: dict | 
 
     doc = {"base": str(ROOT / "scripts/params/sim3_zmp.yaml"), "name": f"incline_{direction}",
            "disturbances": {"incline": {"angle_deg": 3, "direction": direction}}}
+    if sensing:
+        doc["disturbances"]["sensing"] = sensing
     if balance:
         doc["balance"] = balance
     f = tmp_path / f"incline_{direction}.yaml"
@@ -172,3 +175,19 @@ def test_the_feet_sensors_and_the_estimate_obey_newtons_law_on_a_mujoco_incline(
     est = run.result.extra.get("balance_external_force_N")
     assert est is not None
     np.testing.assert_allclose(est, (0.0, pull), atol=0.1 * pull)
+
+
+@pytest.mark.slow
+def test_the_lead_in_held_flat_walks_3_deg_uphill_with_noise(tmp_path):
+    """3 deg uphill (gravity turned) with 0.02 m/s and 0.02 rad/s of noise on the sensed base twist.  From the first
+    instant the CoP must sit z_c tan(3 deg) = 48 mm behind the CoM; the lead-in's polygon with the trailing foot on
+    its toe leaves 30 mm, and that walk fell in the lead-in (the hip below 0.5 m at 1.44 s).  With the trailing foot
+    held flat on its heel box until its toe-off (flat_lead_in), the walk completes, the stance feet within 1 deg
+    and 5 mm of slip."""
+    noise = {"base_linear_velocity_mps": 0.02, "base_angular_velocity_radps": 0.02, "seed": 1}
+    run = _incline_run(tmp_path, "up", None, {"flat_lead_in": True}, sensing=noise)
+    assert run.result.completed, run.result.reason
+    s = run.summary
+    assert s["stance_tilt_max_rad"] <= math.radians(1.0) and s["foot_slip_max_m"] <= 0.005, s
+    fell = _incline_run(tmp_path, "up", 2.0, sensing=noise)              # the default: off
+    assert not fell.result.completed and "fall" in fell.result.reason, fell.result.reason

@@ -173,8 +173,9 @@ def test_hip_acceleration_is_the_derivative_of_the_velocity(zmp_sim3):
 
 def test_the_controllers_combined_queries_equal_the_interfaces(zmp_sim3):
     """``hip_targets`` (which ``hip_reference`` and ``hip_acceleration`` read) against ``sample_global``'s hip, a
-    separate evaluation of the same polynomials, and ``toe_velocity`` = toe_reference's velocity bit for bit, on the
-    zmp trajectory and on its chapter-3 trajectory, in every phase (lead-in, swings, double supports), inside and
+    separate evaluation of the same polynomials, ``toe_velocity`` = toe_reference's velocity and ``swing_feedforward``
+    = the toe reference with its velocity's central difference, bit for bit, on the zmp trajectory and on its
+    chapter-3 trajectory, in every phase (lead-in, swings, double supports), inside and
     outside each phase's window (clamped) and for the fixed foot."""
     traj = zmp_sim3[1].traj
     for tr in (traj, traj.inner):
@@ -189,6 +190,14 @@ def test_the_controllers_combined_queries_equal_the_interfaces(zmp_sim3):
                     np.testing.assert_allclose(x, y, rtol=0, atol=1e-12)
                 for foot in ("R", "L"):
                     assert np.array_equal(tr.toe_velocity(k, t, foot), tr.toe_reference(k, t, foot)[1])
+                    # the balance controller's swing query: the toe reference and the central difference of its
+                    # velocity over t +- 1 ms, written with the interface's queries and NumPy (the same numbers)
+                    h = 1e-3
+                    pt, v6, R, a6 = tr.swing_feedforward(k, t, foot, h)
+                    ref = tr.toe_reference(k, t, foot)
+                    ff = (tr.toe_reference(k, t + h, foot)[1] - tr.toe_reference(k, t - h, foot)[1]) / (2.0 * h)
+                    for x, y in ((pt, ref[0]), (v6, ref[1]), (R, ref[2]), (a6, ff)):
+                        assert np.array_equal(x, y), (k, t, foot)
 
 
 def test_lead_in_yaw_meets_the_thesis_yaw_and_rate(zmp_sim3):

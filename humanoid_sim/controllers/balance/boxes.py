@@ -74,8 +74,8 @@ class SoleBoxes:
         return rows
 
     def whole(self, dsp: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The rows of a wholly supported sole in double (``dsp``) or single support: heel box, toe box, the whole
-        sole, a trailing toe box, each shrunk by the phase's CoP margin."""
+        """The rows of a wholly supported sole in double (``dsp``) or single support: heel box, toe box, the heel
+        box of a main body held alone, a trailing toe box, each shrunk by the phase's CoP margin."""
         boxes = self._boxes.get(dsp)
         if boxes is None:
             sole, s = self.sole, self.s
@@ -83,30 +83,33 @@ class SoleBoxes:
             m = s.cop_margin_dsp_m if dsp else s.cop_margin_ssp_m
             y0, y1 = -sole.width / 2.0 + m, sole.width / 2.0 - m
             toe = self.rows(m, sole.toe_front_x - jx - m, y0, y1, sole.sole_z - jz)
-            boxes = self._boxes[dsp] = (self.rows(sole.heel_back_x + m, jx - m, y0, y1, sole.sole_z), toe,
-                                        self.rows(sole.heel_back_x + m, sole.toe_front_x - m, y0, y1, sole.sole_z),
-                                        toe)
+            heel = self.rows(sole.heel_back_x + m, jx - m, y0, y1, sole.sole_z)
+            boxes = self._boxes[dsp] = (heel, toe, heel, toe)
         return boxes
 
-    def tables(self, dsp: bool, hold: Foothold | None = None) -> BalanceTables:
+    def tables(self, dsp: bool, hold: Foothold | None = None, held: Foothold | None = None) -> BalanceTables:
         """The QP's tables: the flat foot's heel and toe boxes cut to the supported part of its sole ``hold`` (sole
         frame; each box also keeps its margin from the sole's own edges; a box with nothing left, or the toe box of
-        a foot anchored with its toe bent, carries no load)."""
+        a foot anchored with its toe bent, carries no load); a trailing foot held flat's heel box cut to its last
+        stance's ``held``."""
         sole = self.sole
         jx, _, jz = sole.toe_joint
-        heel, toe, full, trail = self.whole(dsp)
+        heel, toe, main, trail = self.whole(dsp)
+        m = self.s.cop_margin_dsp_m if dsp else self.s.cop_margin_ssp_m
+        hw = sole.width / 2.0
         if hold is not None and not hold.whole:
-            m = self.s.cop_margin_dsp_m if dsp else self.s.cop_margin_ssp_m
-            hw = sole.width / 2.0
             ylo, yhi = max(-hw + m, hold.y_lo), min(hw - m, hold.y_hi)
             heel = self.rows(max(sole.heel_back_x + m, hold.x_lo), min(jx - m, hold.x_hi), ylo, yhi, sole.sole_z)
             toe = self.rows(max(m, hold.x_lo - jx), min(sole.toe_front_x - jx - m, hold.x_hi - jx), ylo, yhi,
                             sole.sole_z - jz) if hold.toe_loaded else self.rows(1.0, 0.0, 0.0, 0.0, sole.sole_z - jz)
-        key = (dsp, id(heel), id(toe), id(trail))
+        if held is not None and not held.whole:
+            main = self.rows(max(sole.heel_back_x + m, held.x_lo), min(jx - m, held.x_hi), max(-hw + m, held.y_lo),
+                             min(hw - m, held.y_hi), sole.sole_z)
+        key = (dsp, id(heel), id(toe), id(main), id(trail))
         tables = self._tables.get(key)
         if tables is None:
             s = self.s
             tables = self._tables[key] = BalanceTables(self.gains, self.w_joint, float(s.heel_lift_rad), heel, toe,
-                                                       full, trail, float(s.w_acc), float(s.w_force),
+                                                       main, trail, float(s.w_acc), float(s.w_force),
                                                        float(s.w_torque))
         return tables

@@ -51,14 +51,14 @@ def balance_qp(A, w, b, M_upper, h, J, rhs_shift, nw, box_kind, split, tables, u
     box alone; 2: the whole sole) and the extra weight ``unload`` on its normal force; per split foot j its weld
     ``split_weld[j]``, its lock row ``split_lock[j]`` in lam, X[j] (6, 6) and jt[j] (6,) (``split`` = (split_weld,
     split_lock, X, jt)); from ``tables`` (:class:`.qp.BalanceTables`) the box rows (11, 6) ``heel`` and ``toe``
-    (kind 0), ``trail`` (kind 1), ``full`` (kind 2) and the regularisation weights.
+    (kind 0), ``trail`` (kind 1), ``main`` (kind 2) and the regularisation weights.
     x = [a (nv); lam (m); W_t (6 per split)].
 
     Returns G, g (min 1/2 x'Gx - g'x), C, lo (the first ``ne`` rows of C the equalities C x = lo, the others the
     inequalities C x >= lo = 0: stacked as DAQP takes them), ne, cop (the inequality rows' CoP flags), M (nv, nv)
     symmetric and Tx (nv - 6, n) with tau[6:] = Tx x + h[6:]."""
     split_weld, split_lock, X, jt = split
-    heel, toe, full, trail = tables.heel, tables.toe, tables.full, tables.trail
+    heel, toe, main, trail = tables.heel, tables.toe, tables.main, tables.trail
     w_acc, w_force, w_torque = tables.w_acc, tables.w_force, tables.w_torque
     nv = M_upper.shape[0]
     m = J.shape[0]
@@ -143,7 +143,7 @@ def balance_qp(A, w, b, M_upper, h, J, rhs_shift, nw, box_kind, split, tables, u
                 cop[row + nb + a] = True
             row += 2 * nb
         else:
-            box = trail if box_kind[i] == 1 else full
+            box = trail if box_kind[i] == 1 else main
             for a in range(nb):
                 for c in range(6):
                     Cin[row + a, cw + c] = box[a, c]

@@ -93,11 +93,12 @@ from humanoid_sim.controllers.balance.stage import FOOT_OF_MAIN, CompiledStage
 from humanoid_sim.controllers.balance.steps import dcm_feedback
 from humanoid_sim.controllers.balance.swing import swing_targets
 from humanoid_sim.controllers.balance.targets import T_HEEL_ANGLE, TARGET_SIZE, Targets, pack_hip, pack_swing
+from humanoid_sim.dynamics.contact import Anchors, ContactSet
 from humanoid_sim.interfaces.controller import Command, ControlContext, ControllerError, Observation
-from humanoid_sim.kernel.records import State
+from humanoid_sim.kernel.records import Anchor, State
 from humanoid_sim.references.chapter3.polynomials import smoothstep
 from humanoid_sim.robot.actuators import Actuators
-from humanoid_sim.robot.phases import FOOT_SPECS, TOE_POINT_FRAME, Phase
+from humanoid_sim.robot.phases import FOOT_SPECS, TOE_POINT_FRAME
 from humanoid_sim.robot.sole import SoleGeometry
 from humanoid_sim.scenario.balance import BalanceSettings
 
@@ -180,7 +181,11 @@ class BalanceController:
         # the components linear in tau (revolute and spherical joints; the shoulders' are not) and their bounds
         self._exact = self.act.component_map(ctx.q0)[1]
         self._exact_limits = self.act.limits[self._exact] * s.torque_margin
-        self._box_kinds: dict[Phase, np.ndarray] = {}
+        self._box_kinds: dict[tuple, np.ndarray] = {}
+        # real ground: a double support whose trailing foot stood with its toe bent on something is held flat on its
+        # heel box (the QP's weld on its main body) instead of by its toe (flat_trail)
+        # (phase index, the trailing main body's placement, the posture's reference angles)
+        self._flat: tuple[int, pin.SE3, np.ndarray] | None = None
         self._bounds: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}   # DAQP's row kinds, upper bounds
         self._stage = CompiledStage(self) if self.compiled and _kernel.AVAILABLE else None
         self._kin_data = self.model.createData()
@@ -257,29 +262,33 @@ class BalanceController:
             pin.computeJointJacobiansTimeVariation(self.model, kin_data, q, v)
             pin.crba(self.model, kin_data, q)
             pin.nonLinearEffects(self.model, kin_data, q, v)
-        tg = self._targets(obs, kin_data)
+        flat = self._flat_trail(obs, kin_data)
+        tg = self._targets(obs, kin_data, flat is not None)
         # each flat foot (main body welded, toe locked) carries two ground wrenches, on its heel box and on its toe
         # box (see the module docstring); the box rows and weights of this phase
-        welds = phase.contacts.welds
-        kinds = self._box_kinds.get(phase)
+        contacts = phase.contacts if flat is None else flat[0]
+        welds = contacts.welds
+        key = (phase, flat is not None)
+        kinds = self._box_kinds.get(key)
         if kinds is None:
-            locks = phase.contacts.locks
-            kinds = self._box_kinds[phase] = np.array(
+            locks = contacts.locks
+            kinds = self._box_kinds[key] = np.array(
                 [0 if f in _FOOT_OF_MAIN and FOOT_SPECS[_FOOT_OF_MAIN[f]].toe_joint in locks else
                  1 if f in _TOE_FRAMES else 2 for f in welds], dtype=np.int64)
-        unload = np.zeros(len(welds))   # double support: the trailing toe's normal force weighted w_unload u^2
+        unload = np.zeros(len(welds))   # double support: the trailing foot's normal force weighted w_unload u^2
         if phase.is_double_support and s.w_unload > 0.0:
             info = self.traj.phases[k]
             u = min(1.0, max(0.0, (tg.t - info.t_start) / info.duration))
-            for i, frame in enumerate(welds):
-                if frame in _TOE_FRAMES:
-                    unload[i] = s.w_unload * u * u
+            for i in range(1, len(welds)):     # the support foot's weld first (phases.py), the trailing foot's next
+                unload[i] = s.w_unload * u * u
         hold = None
         if self._footholds is not None and obs.anchors is not None:   # real ground (foothold.py)
             hold = self._footholds.update(obs.t, phase.support_foot, obs.anchors, q, kin_data, obs.foot_wrenches)
-        tables = self.boxes.tables(phase.is_double_support, hold)
+        held = None if flat is None else self._footholds.stance(        # type: ignore[union-attr]
+            "R" if phase.support_foot == "L" else "L")
+        tables = self.boxes.tables(phase.is_double_support, hold, held)
         build = self._qp_compiled if self._stage is not None else self._qp_reference
-        G, g, C, lo, ne, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, tables, unload)
+        G, g, C, lo, ne, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, tables, unload, flat)
         nv, m = self.nv, Jc.shape[0]
 
         # actuator limits |T| <= limit for the components linear in tau (T = P tau, tau = Tx x + h).  They rarely
@@ -308,7 +317,8 @@ class BalanceController:
             T_sat, sat = T_cmd.copy(), _NO_SATURATION
         else:
             T_sat, sat = self.act.saturate(T_cmd)
-        extra = {"balance_level": level, "box_wrenches": BoxWrenches(x, X, kinds, welds, nv, m)}
+        extra = {"balance_level": level, "box_wrenches": BoxWrenches(x, X, kinds, welds, nv, m),
+                 "flat_trail": flat is not None}
         if sat is not _NO_SATURATION and sat.any():
             B = self.act.torque_map(q, kin[0])
             tau = tau + B @ (T_sat - T_cmd)
@@ -321,7 +331,51 @@ class BalanceController:
         return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=self._thdd,
                        motion=(a, lam), motion_model=self.weld, extra=extra)
 
-    def _targets(self, obs: Observation, kin_data: pin.Data | None = None) -> Targets:
+    def _flat_trail(self, obs: Observation, kin_data: pin.Data | None) -> tuple[ContactSet, Anchors] | None:
+        """The QP's contacts with the trailing foot held flat on its heel box, and their anchors, or None (the
+        phase's own contacts: the trailing foot held by its toe).  Held flat means its main body welded where it
+        stands at the double support's start, no toe lock, no heel lift, the heel box cut as its last stance was.
+
+        On real ground, in a double support whose trailing foot stood its last stance on a partial foothold (its toe
+        bent on something, or its sole cut: :class:`.foothold.Foothold`; ``flat_trail``): a toe box bent on an edge,
+        or standing half on nothing, cannot carry the foot's load (the toe motor gives 30 N m).  And, with
+        ``flat_lead_in``, in the standing lead-in until its toe-off: the whole trailing sole widens the support for a
+        CoP that must sit behind the CoM from the first instant (a slope, a push)."""
+        phase, k = obs.phase, obs.k
+        fh = self._footholds
+        if fh is None or not phase.is_double_support or obs.anchors is None or not self.settings.flat_trail:
+            return None
+        trail = "R" if phase.support_foot == "L" else "L"
+        toe_off = self._lead_in_toe_off(k)      # the standing lead-in: flat until its toe-off
+        lead = toe_off is not None and self._reference_time(obs) < toe_off
+        held = fh.stance(trail)
+        if not lead and (held is None or held.whole):
+            return None
+        support, spec = FOOT_SPECS[phase.support_foot], FOOT_SPECS[trail]
+        if self._flat is None or self._flat[0] != k:
+            d = kin_data if kin_data is not None else self._kin_data
+            if kin_data is None:
+                pin.forwardKinematics(self.model, d, obs.q)
+            # the posture task holds that toe at its bend (straightening it would press it into what it stands on)
+            i = int(spec.toe_joint[len("theta"):]) - 1
+            theta0 = self.theta0.copy()
+            theta0[i] = self.hm.theta_from_q(obs.q)[i]
+            self._flat = (k, pin.SE3(pin.updateFramePlacement(self.model, d, self.fid[spec.main_frame])), theta0)
+        contacts = ContactSet(welds=(support.main_frame, spec.main_frame), locks=(support.toe_joint,),
+                              name=f"{phase.support_foot}-flat+{trail}-flat")
+        anchors = Anchors({**obs.anchors.placements, spec.main_frame: self._flat[1]}, obs.anchors.joint_positions)
+        return contacts, anchors
+
+    def _lead_in_toe_off(self, k: int) -> float | None:
+        """When phase k is the standing lead-in held flat on real ground (``flat_lead_in``): the plan's time at which
+        its trailing foot's toe-off starts (the lead-in's last ``heel_lift_time_s``), s; else None."""
+        s = self.settings
+        if k != 0 or not (s.flat_lead_in and s.flat_trail and self._footholds is not None):
+            return None
+        info = self.traj.phases[0]
+        return info.t_end - min(info.duration, s.heel_lift_time_s)
+
+    def _targets(self, obs: Observation, kin_data: pin.Data | None = None, flat: bool = False) -> Targets:
         """The references of this call on the plan's clock: the hip's (through the DCM law, which measures the
         state: ``kin_data`` holds its forward kinematics when computed already), and the swing foot's (its
         feed-forward ramped in, the landing depth and search on real ground) or the trailing heel's lift in double
@@ -348,13 +402,14 @@ class BalanceController:
             tg.swing = swing_targets(traj, s, k, t, info.swing_foot, self._real_ground, own, t_sw, rate)
             if steps is not None:    # a moved foothold (steps.py)
                 tg.swing = steps.swing_target(k, tg.swing)
-        elif phase.is_double_support:
+        elif phase.is_double_support and not flat:
             # the trailing foot, held by its toe: lift its heel (toe-off) so that only the toe part touches, as the
             # contact model (toe weld) assumes; on real ground a flat trailing foot would carry load on its heel
             # the ramp starts when this double support does: its planned start, or earlier after an early touchdown
             # (the plan's clock waits for a late one, not for an early one)
             if self._dsp_k != k:
-                self._dsp_k, self._dsp_t0 = k, min(t, info.t_start)
+                toe_off = self._lead_in_toe_off(k)     # a lead-in held flat: from its toe-off's start
+                self._dsp_k, self._dsp_t0 = k, min(t, info.t_start) if toe_off is None else toe_off
             x = min(1.0, max(0.0, (t - self._dsp_t0) / min(info.duration, s.heel_lift_time_s)))
             trail = "R" if phase.support_foot == "L" else "L"
             # the lift is the main body's pitch about the toe body's y axis, -(toe joint angle): a toe that stood
@@ -364,16 +419,17 @@ class BalanceController:
         return tg
 
     def _qp_reference(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,
-                      unload: np.ndarray) -> tuple:
-        """The QP with Pinocchio's frame quantities and :func:`qp_numpy` (the reference of :meth:`_qp_compiled`).
-        Returns :func:`qp_numpy`'s outputs, the constraint rows, X per flat foot, h and the Data holding the
-        kinematics."""
+                      unload: np.ndarray, flat: tuple[ContactSet, Anchors] | None = None) -> tuple:
+        """The QP with Pinocchio's frame quantities and :func:`qp_numpy` (the reference of :meth:`_qp_compiled`),
+        on the phase's contacts or ``flat``'s (:meth:`_flat_trail`).  Returns :func:`qp_numpy`'s outputs, the
+        constraint rows, X per flat foot, h and the Data holding the kinematics."""
         s = self.settings
         k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
         model, d = self.model, self.dyn.data
-        rows = self.dyn.prepare(phase.contacts, obs.anchors, q, v)   # kinematics, Jacobians, M (upper), nle
+        contacts, anchors = (phase.contacts, obs.anchors) if flat is None else flat
+        rows = self.dyn.prepare(contacts, anchors, q, v)   # kinematics, Jacobians, M (upper), nle
         pin.updateFramePlacements(model, d)
-        A, b, w = self._task_rows(k, phase)                    # task Jacobians (rows x nv), targets, weights
+        A, b, w = self._task_rows(tg)                          # task Jacobians (rows x nv), targets, weights
         r = [0]                                                # the next free row of A, b, w
 
         def task(J: np.ndarray, acc_des: np.ndarray, drift: np.ndarray, wt: float) -> None:
@@ -449,7 +505,8 @@ class BalanceController:
         kp, kd = pd(s.posture_omega)
         i = r[0]
         A[i:] = self._Jpost
-        b[i:] = kp * (self.theta0 - self.hm.theta_from_q(q)) - kd * (self._Jpost @ v)
+        theta0 = self.theta0 if flat is None else self._flat[2]
+        b[i:] = kp * (theta0 - self.hm.theta_from_q(q)) - kd * (self._Jpost @ v)
         w[i:] = self._w_joint
         splits = self._splits(rows, model, d)
         ns = len(splits)
@@ -461,7 +518,7 @@ class BalanceController:
         return out + (rows.J, X, h, (d, None, 0.0, 0.0, None))
 
     def _qp_compiled(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,
-                     unload: np.ndarray) -> tuple:
+                     unload: np.ndarray, flat: tuple[ContactSet, Anchors] | None = None) -> tuple:
         """:meth:`_qp_reference` in one compiled call (:func:`.compiled.balance_stage`): Pinocchio has computed the
         joint Jacobians and their time variation, M and h (:meth:`__call__`); the kernel the placements, frame
         motions, constraint rows, task rows and the QP."""
@@ -485,9 +542,21 @@ class BalanceController:
         else:
             mode, fi, foot = 0, st.no_frames, None
         state = State(q, v, d.J, d.dJ, d.M, h)
+        need = st.need[(mode, foot)]
+        if flat is None:
+            contact, anchor, split = st.contacts[phase], st.support.anchor(phase, obs.anchors), st.split_toe[phase]
+        else:
+            contact, split = st.flat_contacts[phase], st.flat_split_toe[phase]
+            # the trailing main body is welded: its placement and motion are read (the heel task's frames)
+            need = st.need[(2, "R" if phase.support_foot == "L" else "L")]
+            welds, lock = flat[0].welds, flat[0].locks[0]
+            Ms = [flat[1].placements[f] for f in welds]
+            anchor = Anchor(np.array([M.rotation for M in Ms]), np.array([M.translation for M in Ms]),
+                            float(flat[1].joint_positions[lock]))
+        coords = st.coords if flat is None else st.coords._replace(theta0=self._flat[2])
         G, g, C, lo, ne, cop, M, Tx, Jc, X, lift0, pos_err, ori_err = balance_stage(
-            state, st.tree.record, st.coords, st.work, st.contacts[phase], st.support.anchor(phase, obs.anchors),
-            (mode, fi, st.need[(mode, foot)], tgt), tables, (kinds, st.split_toe[phase]), unload)
+            state, st.tree.record, coords, st.work, contact, anchor, (mode, fi, need, tgt), tables, (kinds, split),
+            unload)
         if mode == 1:
             self._lift_k, self._lift0 = k, lift0
         return G, g, C, lo, ne, cop, M, Tx, Jc, X, h, (d, st, pos_err, ori_err, state)
@@ -511,11 +580,11 @@ class BalanceController:
         T = self.act.thesis_torques(q, v, a, tau, kin_data=d)
         return a, lam, tau, T, bool(np.any(np.abs(T[self._exact]) > self._exact_limits))
 
-    def _task_rows(self, k: int, phase: Phase) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _task_rows(self, tg: Targets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Work buffers (A (rows x nv), b (rows,), w (rows,)) for one call's tasks, every row written by the call:
-        hip 3 + trunk 3, the swing foot's 9 (single support) or the trailing heel's 3 (double support), posture
-        26.  Kept per row count (reused across calls: no array is allocated per task)."""
-        n = 6 + (9 if self.traj.phases[k].swing_foot is not None else 3 if phase.is_double_support else 0) + 26
+        hip 3 + trunk 3, the swing foot's 9 (single support) or the trailing heel's 3 (double support with a
+        toe-off), posture 26.  Kept per row count (reused across calls: no array is allocated per task)."""
+        n = 6 + (9 if tg.swing is not None else 3 if tg.heel is not None else 0) + 26
         buf = self._task_buffers.get(n)
         if buf is None:
             buf = self._task_buffers[n] = (np.empty((n, self.nv)), np.empty(n), np.empty(n))

@@ -176,9 +176,13 @@ class FootholdTracker:
             self.history.append(hold)
         hold.cuts.append((t, axis, bound))
 
+    def stance(self, foot: str) -> Foothold | None:
+        """``foot``'s current stance, or its last one once another foot's stance has started (None before any)."""
+        return self.hold if self.hold is not None and self.hold.foot == foot else self.last.get(foot)
+
     def toe_bend(self, foot: str) -> float:
         """The toe joint's angle (rad) that ``foot``, now trailing on its toe, kept through its last stance when
         that stance was anchored with its toe bent; 0 otherwise."""
-        last = self.last.get(foot)
+        last = self.stance(foot)      # the current hold until the next stance's first update moves it to ``last``
         return 0.0 if last is None or last.toe_loaded else last.toe_angle
 

@@ -15,16 +15,17 @@ import numpy as np
 class BalanceTables(NamedTuple):
     """The balance controller's constant QP inputs (per single / double support): ``gains`` (kp, kd, weight of the
     hip, trunk, swing tasks, then kp, kd of the posture), ``w_joint`` (26,) posture weights, ``heel_lift_rad``
-    (rad), the sole boxes' wrench rows (11, 6) ``heel``, ``toe`` (the flat foot's heel and toe boxes), ``full``
-    (a whole sole), ``trail`` (a trailing foot's toe box) (:func:`.boxes.box_rows`), the regularisation
-    weights ``w_acc``, ``w_force``, ``w_torque``."""
+    (rad), the sole boxes' wrench rows (11, 6) ``heel``, ``toe`` (the flat foot's heel and toe boxes), ``main``
+    (the heel box of a foot held by its main body alone, without its toe lock: a trailing foot kept flat), ``trail``
+    (a trailing foot's toe box) (:func:`.boxes.box_rows`), the regularisation weights ``w_acc``, ``w_force``,
+    ``w_torque``."""
 
     gains: np.ndarray
     w_joint: np.ndarray
     heel_lift_rad: float
     heel: np.ndarray
     toe: np.ndarray
-    full: np.ndarray
+    main: np.ndarray
     trail: np.ndarray
     w_acc: float
     w_force: float
@@ -90,7 +91,7 @@ def qp_numpy(A: np.ndarray, w: np.ndarray, b: np.ndarray, M_upper: np.ndarray, h
     a foot held by its toe alone, lam_weld on its toe box.  Returns (G, g, C, lo, ne, cop, M, Tx) as balance_qp: the
     equality rows then the inequality rows in one C, as DAQP takes them."""
     split_weld, split_lock, X, jt = split
-    heel, toe, full, trail = tables.heel, tables.toe, tables.full, tables.trail
+    heel, toe, main, trail = tables.heel, tables.toe, tables.main, tables.trail
     w_acc, w_force, w_torque = tables.w_acc, tables.w_force, tables.w_torque
     nv, m, ns = M_upper.shape[0], J.shape[0], len(split_weld)
     n = nv + m + 6 * ns
@@ -136,7 +137,7 @@ def qp_numpy(A: np.ndarray, w: np.ndarray, b: np.ndarray, M_upper: np.ndarray, h
             cop += ([False] * 7 + [True] * 4) * 2
         else:
             blk = np.zeros((len(heel), n))
-            blk[:, cw] = trail if kind == 1 else full
+            blk[:, cw] = trail if kind == 1 else main
             blocks.append(blk)
             cop += [False] * 7 + [True] * 4
     return G, g, np.vstack([Ceq] + blocks), np.concatenate([beq, np.zeros(len(cop))]), len(beq), \

@@ -41,6 +41,18 @@ class CompiledStage:
                                         int(model.idx_vs[jid]), kp, kd)
             self.split_toe[ph] = np.array([fi[FOOT_SPECS[FOOT_OF_MAIN[f]].toe_frame] if f in FOOT_OF_MAIN else -1
                                            for f in c.welds], dtype=np.int64)
+        # a double support with its trailing foot held flat on its main body, without its toe lock (flat_trail)
+        self.flat_contacts: dict[Phase, Contact] = {}
+        self.flat_split_toe: dict[Phase, np.ndarray] = {}
+        for ph in Phase:
+            if not ph.is_double_support:
+                continue
+            c = ph.contacts
+            trail = FOOT_SPECS["R" if ph.support_foot == "L" else "L"]
+            jid = model.getJointId(c.locks[0])
+            self.flat_contacts[ph] = Contact(np.array([fi[c.welds[0]], fi[trail.main_frame]], dtype=np.int64),
+                                             int(model.idx_qs[jid]), int(model.idx_vs[jid]), kp, kd)
+            self.flat_split_toe[ph] = np.array([fi[FOOT_SPECS[ph.support_foot].toe_frame], -1], dtype=np.int64)
         self.swing_frames = {f: np.array([fi[TOE_POINT_FRAME[f]], fi[FOOT_SPECS[f].toe_frame],
                                           fi[FOOT_SPECS[f].main_frame]], dtype=np.int64) for f in ("R", "L")}
         self.heel_frames = {f: np.array([fi[FOOT_SPECS[f].toe_frame], fi[FOOT_SPECS[f].main_frame], 0],
