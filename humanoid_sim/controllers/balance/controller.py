@@ -182,9 +182,8 @@ class BalanceController:
         self._exact = self.act.component_map(ctx.q0)[1]
         self._exact_limits = self.act.limits[self._exact] * s.torque_margin
         self._box_kinds: dict[tuple, np.ndarray] = {}
-        # real ground: a double support whose trailing foot stood with its toe bent on something is held flat on its
-        # heel box (the QP's weld on its main body) instead of by its toe (flat_trail)
-        # (phase index, the trailing main body's placement, the posture's reference angles)
+        # a trailing foot held flat (_flat_trail): its double support's index, the main body's anchor and the
+        # posture's reference angles (the toe at its bend)
         self._flat: tuple[int, pin.SE3, np.ndarray] | None = None
         self._bounds: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}   # DAQP's row kinds, upper bounds
         self._stage = CompiledStage(self) if self.compiled and _kernel.AVAILABLE else None
