@@ -93,8 +93,9 @@ class BalanceSettings:
         foothold_cut_margin_m: how far inside a cut the CoP stays, m.
         foothold_min_width_m: the least width a cut leaves on either side of it, m.
         foothold_toe_bent_rad: the toe-joint angle at anchoring beyond which a foot's toe box carries no load, rad.
-        flat_trail: on real ground, hold a trailing foot whose toe stood bent on something flat on its heel box
-            through the double support (no toe-off), instead of by that toe.
+        flat_trail: on real ground, hold a trailing foot whose last stance stood on a partial foothold (its toe bent
+            on something, or its sole cut) flat on its heel box through the double support (no toe-off), instead
+            of by its toe.
         flat_lead_in: on real ground, hold the standing lead-in's trailing foot flat on its heel box until its
             toe-off (the last ``heel_lift_time_s``), instead of by its toe from the start (off by default: see
             docs/controllers.md).

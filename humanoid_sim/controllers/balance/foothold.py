@@ -181,8 +181,8 @@ class FootholdTracker:
         return self.hold if self.hold is not None and self.hold.foot == foot else self.last.get(foot)
 
     def toe_bend(self, foot: str) -> float:
-        """The toe joint's angle (rad) that ``foot``, now trailing on its toe, kept through its last stance when
-        that stance was anchored with its toe bent; 0 otherwise."""
+        """The toe joint's angle (rad) that ``foot`` kept through its stance (:meth:`stance`: the current one, or its
+        last) when that stance was anchored with its toe bent; 0 otherwise."""
         last = self.stance(foot)      # the current hold until the next stance's first update moves it to ``last``
         return 0.0 if last is None or last.toe_loaded else last.toe_angle
 
