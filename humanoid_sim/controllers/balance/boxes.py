@@ -97,14 +97,18 @@ class SoleBoxes:
         heel, toe, main, trail = self.whole(dsp)
         m = self.s.cop_margin_dsp_m if dsp else self.s.cop_margin_ssp_m
         hw = sole.width / 2.0
+
+        def cut_heel(h: Foothold) -> np.ndarray:     # the heel box cut to a stance's supported part
+            return self.rows(max(sole.heel_back_x + m, h.x_lo), min(jx - m, h.x_hi), max(-hw + m, h.y_lo),
+                             min(hw - m, h.y_hi), sole.sole_z)
+
         if hold is not None and not hold.whole:
             ylo, yhi = max(-hw + m, hold.y_lo), min(hw - m, hold.y_hi)
-            heel = self.rows(max(sole.heel_back_x + m, hold.x_lo), min(jx - m, hold.x_hi), ylo, yhi, sole.sole_z)
+            heel = cut_heel(hold)
             toe = self.rows(max(m, hold.x_lo - jx), min(sole.toe_front_x - jx - m, hold.x_hi - jx), ylo, yhi,
                             sole.sole_z - jz) if hold.toe_loaded else self.rows(1.0, 0.0, 0.0, 0.0, sole.sole_z - jz)
         if held is not None and not held.whole:
-            main = self.rows(max(sole.heel_back_x + m, held.x_lo), min(jx - m, held.x_hi), max(-hw + m, held.y_lo),
-                             min(hw - m, held.y_hi), sole.sole_z)
+            main = cut_heel(held)
         key = (dsp, id(heel), id(toe), id(main), id(trail))
         tables = self._tables.get(key)
         if tables is None:

@@ -86,7 +86,7 @@ from humanoid_sim import kernel as _kernel
 from humanoid_sim.controllers.balance.boxes import SoleBoxes
 from humanoid_sim.controllers.balance.compiled import balance_finish, balance_stage
 from humanoid_sim.controllers.balance.estimate import TwistFilter
-from humanoid_sim.controllers.balance.foothold import FootholdTracker
+from humanoid_sim.controllers.balance.foothold import Foothold, FootholdTracker
 from humanoid_sim.controllers.balance.force import ForceEstimate
 from humanoid_sim.controllers.balance.qp import BalanceTables, BoxWrenches, pd, qp_numpy, rot_y
 from humanoid_sim.controllers.balance.stage import FOOT_OF_MAIN, CompiledStage
@@ -98,7 +98,7 @@ from humanoid_sim.interfaces.controller import Command, ControlContext, Controll
 from humanoid_sim.kernel.records import Anchor, State
 from humanoid_sim.references.chapter3.polynomials import smoothstep
 from humanoid_sim.robot.actuators import Actuators
-from humanoid_sim.robot.phases import FOOT_SPECS, TOE_POINT_FRAME
+from humanoid_sim.robot.phases import FOOT_SPECS, TOE_POINT_FRAME, other_foot
 from humanoid_sim.robot.sole import SoleGeometry
 from humanoid_sim.scenario.balance import BalanceSettings
 
@@ -283,9 +283,7 @@ class BalanceController:
         hold = None
         if self._footholds is not None and obs.anchors is not None:   # real ground (foothold.py)
             hold = self._footholds.update(obs.t, phase.support_foot, obs.anchors, q, kin_data, obs.foot_wrenches)
-        held = None if flat is None else self._footholds.stance(        # type: ignore[union-attr]
-            "R" if phase.support_foot == "L" else "L")
-        tables = self.boxes.tables(phase.is_double_support, hold, held)
+        tables = self.boxes.tables(phase.is_double_support, hold, None if flat is None else flat[2])
         build = self._qp_compiled if self._stage is not None else self._qp_reference
         G, g, C, lo, ne, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, tables, unload, flat)
         nv, m = self.nv, Jc.shape[0]
@@ -330,8 +328,10 @@ class BalanceController:
         return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=self._thdd,
                        motion=(a, lam), motion_model=self.weld, extra=extra)
 
-    def _flat_trail(self, obs: Observation, kin_data: pin.Data | None) -> tuple[ContactSet, Anchors] | None:
-        """The QP's contacts with the trailing foot held flat on its heel box, and their anchors, or None (the
+    def _flat_trail(self, obs: Observation, kin_data: pin.Data | None
+                    ) -> tuple[ContactSet, Anchors, Foothold | None] | None:
+        """The QP's contacts with the trailing foot held flat on its heel box, their anchors and the trailing foot's
+        last stance (:meth:`.foothold.FootholdTracker.stance`, None before any), or None (the
         phase's own contacts: the trailing foot held by its toe).  Held flat means its main body welded where it
         stands at the double support's start, no toe lock, no heel lift, the heel box cut as its last stance was.
 
@@ -344,7 +344,7 @@ class BalanceController:
         fh = self._footholds
         if fh is None or not phase.is_double_support or obs.anchors is None or not self.settings.flat_trail:
             return None
-        trail = "R" if phase.support_foot == "L" else "L"
+        trail = other_foot(phase.support_foot)
         toe_off = self._lead_in_toe_off(k)      # the standing lead-in: flat until its toe-off
         lead = toe_off is not None and self._reference_time(obs) < toe_off
         held = fh.stance(trail)
@@ -363,7 +363,7 @@ class BalanceController:
         contacts = ContactSet(welds=(support.main_frame, spec.main_frame), locks=(support.toe_joint,),
                               name=f"{phase.support_foot}-flat+{trail}-flat")
         anchors = Anchors({**obs.anchors.placements, spec.main_frame: self._flat[1]}, obs.anchors.joint_positions)
-        return contacts, anchors
+        return contacts, anchors, held
 
     def _lead_in_toe_off(self, k: int) -> float | None:
         """When phase k is the standing lead-in held flat on real ground (``flat_lead_in``): the plan's time at which
@@ -418,14 +418,14 @@ class BalanceController:
         return tg
 
     def _qp_reference(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,
-                      unload: np.ndarray, flat: tuple[ContactSet, Anchors] | None = None) -> tuple:
+                      unload: np.ndarray, flat: tuple | None = None) -> tuple:
         """The QP with Pinocchio's frame quantities and :func:`qp_numpy` (the reference of :meth:`_qp_compiled`),
         on the phase's contacts or ``flat``'s (:meth:`_flat_trail`).  Returns :func:`qp_numpy`'s outputs, the
         constraint rows, X per flat foot, h and the Data holding the kinematics."""
         s = self.settings
         k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
         model, d = self.model, self.dyn.data
-        contacts, anchors = (phase.contacts, obs.anchors) if flat is None else flat
+        contacts, anchors = (phase.contacts, obs.anchors) if flat is None else flat[:2]
         rows = self.dyn.prepare(contacts, anchors, q, v)   # kinematics, Jacobians, M (upper), nle
         pin.updateFramePlacements(model, d)
         A, b, w = self._task_rows(tg)                          # task Jacobians (rows x nv), targets, weights
@@ -517,7 +517,7 @@ class BalanceController:
         return out + (rows.J, X, h, (d, None, 0.0, 0.0, None))
 
     def _qp_compiled(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,
-                     unload: np.ndarray, flat: tuple[ContactSet, Anchors] | None = None) -> tuple:
+                     unload: np.ndarray, flat: tuple | None = None) -> tuple:
         """:meth:`_qp_reference` in one compiled call (:func:`.compiled.balance_stage`): Pinocchio has computed the
         joint Jacobians and their time variation, M and h (:meth:`__call__`); the kernel the placements, frame
         motions, constraint rows, task rows and the QP."""
@@ -547,7 +547,7 @@ class BalanceController:
         else:
             contact, split = st.flat_contacts[phase], st.flat_split_toe[phase]
             # the trailing main body is welded: its placement and motion are read (the heel task's frames)
-            need = st.need[(2, "R" if phase.support_foot == "L" else "L")]
+            need = st.need[(2, other_foot(phase.support_foot))]
             welds, lock = flat[0].welds, flat[0].locks[0]
             Ms = [flat[1].placements[f] for f in welds]
             anchor = Anchor(np.array([M.rotation for M in Ms]), np.array([M.translation for M in Ms]),

@@ -10,7 +10,7 @@ import numpy as np
 from humanoid_sim.kernel.records import Contact, Coords
 from humanoid_sim.kernel.support import FRAMES, SupportKernel, actuator_tables
 from humanoid_sim.kernel.tree import TreeConstants
-from humanoid_sim.robot.phases import FOOT_SPECS, TOE_POINT_FRAME, Phase
+from humanoid_sim.robot.phases import FOOT_SPECS, TOE_POINT_FRAME, Phase, other_foot
 
 FOOT_OF_MAIN = {spec.main_frame: foot for foot, spec in FOOT_SPECS.items()}   # O_3 -> R, O_4 -> L
 
@@ -48,7 +48,7 @@ class CompiledStage:
             if not ph.is_double_support:
                 continue
             c = ph.contacts
-            trail = FOOT_SPECS["R" if ph.support_foot == "L" else "L"]
+            trail = FOOT_SPECS[other_foot(ph.support_foot)]
             jid = model.getJointId(c.locks[0])
             self.flat_contacts[ph] = Contact(np.array([fi[c.welds[0]], fi[trail.main_frame]], dtype=np.int64),
                                              int(model.idx_qs[jid]), int(model.idx_vs[jid]), kp, kd)
