@@ -67,7 +67,8 @@ class _Both:
                 dd.oMf[fid["P_tpL"]].translation, dd.oMf[fid["O_1"]].rotation.ravel(),
                 dd.oMf[fid["O_2"]].rotation.ravel()])
             # the contacts the call used: the phase's, or with the trailing foot held flat (flat_trail)
-            contacts = self.ref._flat_trail(obs, None)[0] if c1.extra["flat_trail"] else obs.phase.contacts
+            contacts = self.ref._trail.contacts(obs, self.ref._reference_time(obs), None).contacts \
+                if c1.extra["flat_trail"] else obs.phase.contacts
             rows = self.ref.dyn.rows(contacts)
             frames = lg[LOG_SLICES["hip_p"].start:LOG_SLICES["R_2"].stop]
             r = StageLog(lg)

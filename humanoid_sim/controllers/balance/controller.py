@@ -86,14 +86,14 @@ from humanoid_sim import kernel as _kernel
 from humanoid_sim.controllers.balance.boxes import SoleBoxes
 from humanoid_sim.controllers.balance.compiled import balance_finish, balance_stage
 from humanoid_sim.controllers.balance.estimate import TwistFilter
-from humanoid_sim.controllers.balance.foothold import Foothold, FootholdTracker
+from humanoid_sim.controllers.balance.foothold import FootholdTracker
 from humanoid_sim.controllers.balance.force import ForceEstimate
 from humanoid_sim.controllers.balance.qp import BalanceTables, BoxWrenches, pd, qp_numpy, rot_y
 from humanoid_sim.controllers.balance.stage import FOOT_OF_MAIN, CompiledStage
 from humanoid_sim.controllers.balance.steps import dcm_feedback
 from humanoid_sim.controllers.balance.swing import swing_targets
 from humanoid_sim.controllers.balance.targets import T_HEEL_ANGLE, TARGET_SIZE, Targets, pack_hip, pack_swing
-from humanoid_sim.dynamics.contact import Anchors, ContactSet
+from humanoid_sim.controllers.balance.trail import FlatContacts, FlatTrail
 from humanoid_sim.interfaces.controller import Command, ControlContext, ControllerError, Observation
 from humanoid_sim.kernel.records import Anchor, State
 from humanoid_sim.references.chapter3.polynomials import smoothstep
@@ -182,9 +182,6 @@ class BalanceController:
         self._exact = self.act.component_map(ctx.q0)[1]
         self._exact_limits = self.act.limits[self._exact] * s.torque_margin
         self._box_kinds: dict[tuple, np.ndarray] = {}
-        # a trailing foot held flat (_flat_trail): its double support's index, the main body's anchor and the
-        # posture's reference angles (the toe at its bend)
-        self._flat: tuple[int, pin.SE3, np.ndarray] | None = None
         self._bounds: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}   # DAQP's row kinds, upper bounds
         self._stage = CompiledStage(self) if self.compiled and _kernel.AVAILABLE else None
         self._kin_data = self.model.createData()
@@ -206,6 +203,8 @@ class BalanceController:
         # real ground: the supported part of the stance sole, from the foot's turn and its sensed CoP (foothold.py)
         self._footholds = FootholdTracker(self.model, self.sole, s) \
             if self._real_ground and s.footholds else None
+        # real ground: a trailing foot that its toe cannot carry held flat on its heel box (trail.py)
+        self._trail = FlatTrail(hm, self.traj, s, self._footholds, self.theta0)
 
     def _reference_time(self, obs: Observation) -> float:
         """The time at which the references are read, s: the plan's clock ``obs.t - obs.plan_delay`` (``time_shift``
@@ -261,7 +260,7 @@ class BalanceController:
             pin.computeJointJacobiansTimeVariation(self.model, kin_data, q, v)
             pin.crba(self.model, kin_data, q)
             pin.nonLinearEffects(self.model, kin_data, q, v)
-        flat = self._flat_trail(obs, kin_data)
+        flat = self._trail.contacts(obs, self._reference_time(obs), kin_data)
         tg = self._targets(obs, kin_data, flat is not None)
         # each flat foot (main body welded, toe locked) carries two ground wrenches, on its heel box and on its toe
         # box (see the module docstring); the box rows and weights of this phase
@@ -283,7 +282,7 @@ class BalanceController:
         hold = None
         if self._footholds is not None and obs.anchors is not None:   # real ground (foothold.py)
             hold = self._footholds.update(obs.t, phase.support_foot, obs.anchors, q, kin_data, obs.foot_wrenches)
-        tables = self.boxes.tables(phase.is_double_support, hold, None if flat is None else flat[2])
+        tables = self.boxes.tables(phase.is_double_support, hold, None if flat is None else flat.held)
         build = self._qp_compiled if self._stage is not None else self._qp_reference
         G, g, C, lo, ne, cop_rows, M, Tx, Jc, X, h, kin = build(obs, tg, kinds, tables, unload, flat)
         nv, m = self.nv, Jc.shape[0]
@@ -328,52 +327,6 @@ class BalanceController:
         return Command(tau=tau, T=T_sat, T_cmd=T_cmd, saturated=sat, theta_ddot_cmd=self._thdd,
                        motion=(a, lam), motion_model=self.weld, extra=extra)
 
-    def _flat_trail(self, obs: Observation, kin_data: pin.Data | None
-                    ) -> tuple[ContactSet, Anchors, Foothold | None] | None:
-        """The QP's contacts with the trailing foot held flat on its heel box, their anchors and the trailing foot's
-        last stance (:meth:`.foothold.FootholdTracker.stance`, None before any), or None (the
-        phase's own contacts: the trailing foot held by its toe).  Held flat means its main body welded where it
-        stands at the double support's start, no toe lock, no heel lift, the heel box cut as its last stance was.
-
-        On real ground, in a double support whose trailing foot stood its last stance on a partial foothold (its toe
-        bent on something, or its sole cut: :class:`.foothold.Foothold`; ``flat_trail``): a toe box bent on an edge,
-        or standing half on nothing, cannot carry the foot's load (the toe motor gives 30 N m).  And, with
-        ``flat_lead_in``, in the standing lead-in until its toe-off: the whole trailing sole widens the support for a
-        CoP that must sit behind the CoM from the first instant (a slope, a push)."""
-        phase, k = obs.phase, obs.k
-        fh = self._footholds
-        if fh is None or not phase.is_double_support or obs.anchors is None or not self.settings.flat_trail:
-            return None
-        trail = other_foot(phase.support_foot)
-        toe_off = self._lead_in_toe_off(k)      # the standing lead-in: flat until its toe-off
-        lead = toe_off is not None and self._reference_time(obs) < toe_off
-        held = fh.stance(trail)
-        if not lead and (held is None or held.whole):
-            return None
-        support, spec = FOOT_SPECS[phase.support_foot], FOOT_SPECS[trail]
-        if self._flat is None or self._flat[0] != k:
-            d = kin_data if kin_data is not None else self._kin_data
-            if kin_data is None:
-                pin.forwardKinematics(self.model, d, obs.q)
-            # the posture task holds that toe at its bend (straightening it would press it into what it stands on)
-            i = int(spec.toe_joint[len("theta"):]) - 1
-            theta0 = self.theta0.copy()
-            theta0[i] = self.hm.theta_from_q(obs.q)[i]
-            self._flat = (k, pin.SE3(pin.updateFramePlacement(self.model, d, self.fid[spec.main_frame])), theta0)
-        contacts = ContactSet(welds=(support.main_frame, spec.main_frame), locks=(support.toe_joint,),
-                              name=f"{phase.support_foot}-flat+{trail}-flat")
-        anchors = Anchors({**obs.anchors.placements, spec.main_frame: self._flat[1]}, obs.anchors.joint_positions)
-        return contacts, anchors, held
-
-    def _lead_in_toe_off(self, k: int) -> float | None:
-        """When phase k is the standing lead-in held flat on real ground (``flat_lead_in``): the plan's time at which
-        its trailing foot's toe-off starts (the lead-in's last ``heel_lift_time_s``), s; else None."""
-        s = self.settings
-        if k != 0 or not (s.flat_lead_in and s.flat_trail and self._footholds is not None):
-            return None
-        info = self.traj.phases[0]
-        return info.t_end - min(info.duration, s.heel_lift_time_s)
-
     def _targets(self, obs: Observation, kin_data: pin.Data | None = None, flat: bool = False) -> Targets:
         """The references of this call on the plan's clock: the hip's (through the DCM law, which measures the
         state: ``kin_data`` holds its forward kinematics when computed already), and the swing foot's (its
@@ -407,7 +360,7 @@ class BalanceController:
             # the ramp starts when this double support does: its planned start, or earlier after an early touchdown
             # (the plan's clock waits for a late one, not for an early one)
             if self._dsp_k != k:
-                toe_off = self._lead_in_toe_off(k)     # a lead-in held flat: from its toe-off's start
+                toe_off = self._trail.toe_off(k)     # a lead-in held flat: from its toe-off's start
                 self._dsp_k, self._dsp_t0 = k, min(t, info.t_start) if toe_off is None else toe_off
             x = min(1.0, max(0.0, (t - self._dsp_t0) / min(info.duration, s.heel_lift_time_s)))
             trail = "R" if phase.support_foot == "L" else "L"
@@ -418,14 +371,14 @@ class BalanceController:
         return tg
 
     def _qp_reference(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,
-                      unload: np.ndarray, flat: tuple | None = None) -> tuple:
+                      unload: np.ndarray, flat: FlatContacts | None = None) -> tuple:
         """The QP with Pinocchio's frame quantities and :func:`qp_numpy` (the reference of :meth:`_qp_compiled`),
-        on the phase's contacts or ``flat``'s (:meth:`_flat_trail`).  Returns :func:`qp_numpy`'s outputs, the
+        on the phase's contacts or ``flat``'s (:mod:`.trail`).  Returns :func:`qp_numpy`'s outputs, the
         constraint rows, X per flat foot, h and the Data holding the kinematics."""
         s = self.settings
         k, phase, q, v = obs.k, obs.phase, obs.q, obs.v
         model, d = self.model, self.dyn.data
-        contacts, anchors = (phase.contacts, obs.anchors) if flat is None else flat[:2]
+        contacts, anchors = (phase.contacts, obs.anchors) if flat is None else (flat.contacts, flat.anchors)
         rows = self.dyn.prepare(contacts, anchors, q, v)   # kinematics, Jacobians, M (upper), nle
         pin.updateFramePlacements(model, d)
         A, b, w = self._task_rows(tg)                          # task Jacobians (rows x nv), targets, weights
@@ -504,7 +457,7 @@ class BalanceController:
         kp, kd = pd(s.posture_omega)
         i = r[0]
         A[i:] = self._Jpost
-        theta0 = self.theta0 if flat is None else self._flat[2]
+        theta0 = self.theta0 if flat is None else flat.theta0
         b[i:] = kp * (theta0 - self.hm.theta_from_q(q)) - kd * (self._Jpost @ v)
         w[i:] = self._w_joint
         splits = self._splits(rows, model, d)
@@ -517,7 +470,7 @@ class BalanceController:
         return out + (rows.J, X, h, (d, None, 0.0, 0.0, None))
 
     def _qp_compiled(self, obs: Observation, tg: Targets, kinds: np.ndarray, tables: BalanceTables,
-                     unload: np.ndarray, flat: tuple | None = None) -> tuple:
+                     unload: np.ndarray, flat: FlatContacts | None = None) -> tuple:
         """:meth:`_qp_reference` in one compiled call (:func:`.compiled.balance_stage`): Pinocchio has computed the
         joint Jacobians and their time variation, M and h (:meth:`__call__`); the kernel the placements, frame
         motions, constraint rows, task rows and the QP."""
@@ -548,11 +501,11 @@ class BalanceController:
             contact, split = st.flat_contacts[phase], st.flat_split_toe[phase]
             # the trailing main body is welded: its placement and motion are read (the heel task's frames)
             need = st.need[(2, other_foot(phase.support_foot))]
-            welds, lock = flat[0].welds, flat[0].locks[0]
-            Ms = [flat[1].placements[f] for f in welds]
+            welds, lock = flat.contacts.welds, flat.contacts.locks[0]
+            Ms = [flat.anchors.placements[f] for f in welds]
             anchor = Anchor(np.array([M.rotation for M in Ms]), np.array([M.translation for M in Ms]),
-                            float(flat[1].joint_positions[lock]))
-        coords = st.coords if flat is None else st.coords._replace(theta0=self._flat[2])
+                            float(flat.anchors.joint_positions[lock]))
+        coords = st.coords if flat is None else st.coords._replace(theta0=flat.theta0)
         G, g, C, lo, ne, cop, M, Tx, Jc, X, lift0, pos_err, ori_err = balance_stage(
             state, st.tree.record, coords, st.work, contact, anchor, (mode, fi, need, tgt), tables, (kinds, split),
             unload)
