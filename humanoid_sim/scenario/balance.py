@@ -97,8 +97,7 @@ class BalanceSettings:
             on something, or its sole cut) flat on its heel box through the double support (no toe-off), instead
             of by its toe.
         flat_lead_in: on real ground, hold the standing lead-in's trailing foot flat on its heel box until its
-            toe-off (the last ``heel_lift_time_s``), instead of by its toe from the start (off by default: see
-            docs/controllers.md).
+            toe-off (the last ``heel_lift_time_s``), instead of by its toe from the start (docs/controllers.md).
     """
 
     hip_omega: float = 12.0
@@ -151,7 +150,7 @@ class BalanceSettings:
     foothold_min_width_m: float = 0.015
     foothold_toe_bent_rad: float = 0.05
     flat_trail: bool = True
-    flat_lead_in: bool = False
+    flat_lead_in: bool = True
 
     def __post_init__(self) -> None:
         if self.feedback not in FEEDBACKS:

@@ -182,12 +182,12 @@ def test_the_lead_in_held_flat_walks_3_deg_uphill_with_noise(tmp_path):
     """3 deg uphill (gravity turned) with 0.02 m/s and 0.02 rad/s of noise on the sensed base twist.  From the first
     instant the CoP must sit z_c tan(3 deg) = 48 mm behind the CoM; the lead-in's polygon with the trailing foot on
     its toe leaves 30 mm, and that walk fell in the lead-in (the hip below 0.5 m at 1.44 s).  With the trailing foot
-    held flat on its heel box until its toe-off (flat_lead_in), the walk completes, the stance feet within 1 deg
-    and 5 mm of slip."""
+    held flat on its heel box until its toe-off (flat_lead_in, the default), the walk completes, the stance feet
+    within 1 deg and 5 mm of slip."""
     noise = {"base_linear_velocity_mps": 0.02, "base_angular_velocity_radps": 0.02, "seed": 1}
-    run = _incline_run(tmp_path, "up", None, {"flat_lead_in": True}, sensing=noise)
+    run = _incline_run(tmp_path, "up", None, sensing=noise)
     assert run.result.completed, run.result.reason
     s = run.summary
     assert s["stance_tilt_max_rad"] <= math.radians(1.0) and s["foot_slip_max_m"] <= 0.005, s
-    fell = _incline_run(tmp_path, "up", 2.0, sensing=noise)              # the default: off
+    fell = _incline_run(tmp_path, "up", 2.0, {"flat_lead_in": False}, sensing=noise)   # held by its toe
     assert not fell.result.completed and "fall" in fell.result.reason, fell.result.reason
