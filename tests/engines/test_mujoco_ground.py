@@ -235,7 +235,7 @@ def test_contact_audit_of_the_feasible_gait_on_real_ground(hm: HumanoidModel, na
     judges no step before contact (the first, 0 N: the one unloaded step) and no centre of pressure of a foot on its
     edge as outside (pivoting: 3-25 um past it; sliding on an edge at depth p: up to mu p, the stated tolerance of
     ``real_ground_edge_tol``), so no ZMP or CoP step is outside and none is infeasible; the settling is reported
-    apart (its penetration, > 2 mm, the transient of the soft contact taking the weight); the trailing feet's slides
+    apart (its penetration, the transient of the soft contact taking the weight); the trailing feet's slides
     as they unload are listed."""
     from humanoid_sim.analysis.audit import EDGE_TOL_M
     from humanoid_sim.analysis.summary import real_ground_edge_tol, summary_and_audit
@@ -256,7 +256,10 @@ def test_contact_audit_of_the_feasible_gait_on_real_ground(hm: HumanoidModel, na
     assert min(c["min_cop_margin_m"].values()) >= -tol
     assert c["unloaded_below_N"] == pytest.approx(27.0, abs=0.1)
     settling, sliding = c["settling"], c["sliding"]
-    assert settling["ended"] and settling["penetration_max_m"] > 2e-3 and settling["sliding_count"] == 1
+    # the robot starts at rest on z = 0 with no contact force: the soft contact takes its weight in a transient
+    # about 1 mm deep with both soles flat, 7 times the 0.14 mm it then stands at (2.5 mm with the lead-in's
+    # trailing foot on its toe, which also slid once)
+    assert settling["ended"] and settling["penetration_max_m"] > 0.5e-3 and settling["sliding_count"] <= 1
     assert s["penetration_max_m"] < 5e-3 and s["foot_slip_max_m"] < 5e-3     # the walk's, after settling
     events = sliding["events"]
     assert sliding["count"] == len(events) >= 10                              # a slide per lift-off or so
