@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from humanoid_sim.engines.mujoco.contact import sole_corners
 from humanoid_sim.engines.mujoco.disturb import Pusher, terrain_boxes
 from humanoid_sim.engines.mujoco.model import MujocoSettings, build_model
 from humanoid_sim.engines.mujoco.sim import MujocoSim
@@ -286,26 +287,21 @@ def test_empty_section_leaves_the_walk_bit_for_bit(hm: HumanoidModel) -> None:
     assert b.extra["disturbances"] == {"pushes": [], "terrain": [], "sensing": None}
 
 
-def test_a_foot_flat_on_a_slope_has_not_tipped(hm: HumanoidModel) -> None:
-    """The fall test's tilt is read from the ground under the foot.  The standing robot is turned as one body by
-    5 deg about the world x axis, its soles pressed 1 mm into a slope box whose top face is the floor's plane turned
-    the same way: each sole is then 5 deg from the vertical (what the fall test read before: 'tipped' from 3 deg on)
-    and level with the ground it stands on.  Without terrain the tilt is the vertical's, as before."""
+def _turned_onto_slope(hm: HumanoidModel, a: float) -> tuple[MujocoSim, np.ndarray]:
+    """The standing robot turned as one body by ``a`` (rad) about the world x axis, its soles pressed 1 mm into a
+    slope box whose top face is the floor's plane turned the same way and lifted 0.5 m (the floor touches nothing);
+    MuJoCo's forward pass done.  Returns the sim and the turn R (3 x 3)."""
     import pinocchio as pin
 
-    from humanoid_sim.engines.mujoco.contact import bearing_tilt, ground_normal, ground_slope, sole_corners, sole_tilt
-
-    a = math.radians(5.0)
     R = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(a), -math.sin(a)], [0.0, math.sin(a), math.cos(a)]])
-    lift = np.array([0.0, 0.0, 0.5])                 # the slope's plane 0.5 m up: the floor touches nothing
+    lift = np.array([0.0, 0.0, 0.5])
     piece = parse_disturbances("test", {"terrain": [
-        {"kind": "slope", "centre": [0.0, 0.0], "size": [2.0, 2.0], "angle_deg": 5, "direction": "up"}]}).terrain[0]
+        {"kind": "slope", "centre": [0.0, 0.0], "size": [2.0, 2.0], "angle_deg": math.degrees(a),
+         "direction": "up"}]}).terrain[0]
     half = np.array([2.0, 2.0, 0.05])
     slope = dataclasses.replace(terrain_boxes([piece], 0.0)[0], centre=R @ np.array([0.0, 0.0, -half[2]]) + lift,
                                 half=half, R=R)
     robot = MujocoSim(hm, MujocoSettings(), terrain=[slope])
-    assert ground_slope(build_model(hm)) == 0.0
-    assert ground_slope(robot.mm) == pytest.approx(a, abs=1e-12)      # a unit quaternion's matrix: round-off
     # the initial posture with its lowest sole corner 1 mm below the floor's plane, then turned and lifted
     q = hm.initial_q().copy()
     robot.set_state(q, np.zeros(hm.model.nv))
@@ -318,9 +314,59 @@ def test_a_foot_flat_on_a_slope_has_not_tipped(hm: HumanoidModel) -> None:
     q[3:7] = turned.x, turned.y, turned.z, turned.w
     robot.set_state(q, np.zeros(hm.model.nv))
     mujoco.mj_forward(robot.model, robot.data)
+    return robot, R
+
+
+def test_a_foot_flat_on_a_slope_has_not_tipped(hm: HumanoidModel) -> None:
+    """The fall test's tilt is read from the ground under the foot.  The standing robot is turned as one body by
+    5 deg about the world x axis, its soles pressed 1 mm into a slope box whose top face is the floor's plane turned
+    the same way: each sole is then 5 deg from the vertical (what the fall test read before: 'tipped' from 3 deg on)
+    and level with the ground it stands on.  Without terrain the tilt is the vertical's, as before."""
+    from humanoid_sim.engines.mujoco.contact import bearing_tilt, ground_normal, ground_slope, sole_tilt
+
+    a = math.radians(5.0)
+    robot, R = _turned_onto_slope(hm, a)
+    assert ground_slope(build_model(hm)) == 0.0
+    assert ground_slope(robot.mm) == pytest.approx(a, abs=1e-12)      # a unit quaternion's matrix: round-off
     mm, d = robot.mm, robot.data
     for foot in "RL":
         # the posture's soles are level to 1e-3 rad; the rest is the turn
         assert sole_tilt(mm, d, foot) == pytest.approx(a, abs=1e-3)
         np.testing.assert_allclose(ground_normal(mm, d, foot), R[:, 2], atol=1e-12)   # one geom's axis: round-off
         assert bearing_tilt(mm, d, foot, 300.0, 20.0) < 1e-3
+
+
+def test_the_summary_tilts_are_read_from_the_ground_under_the_foot_on_terrain(hm: HumanoidModel) -> None:
+    """summary.json's tilt maxima on terrain: a foot standing flat on a slope box has not tilted.  The robot of
+    :func:`_turned_onto_slope` (5 deg) read by both ground meters with the left foot held flat: each loaded sole is
+    5 deg from the vertical and both meters' maxima read under 1e-3 rad (the posture's soles are level to that), the
+    compiled meter's equal to the reference's."""
+    from humanoid_sim.engines.mujoco.contact import sole_tilt
+    from humanoid_sim.engines.mujoco.ground import GroundMeter, ReferenceGroundMeter
+
+    a = math.radians(5.0)
+    robot, _ = _turned_onto_slope(hm, a)
+    mm, d = robot.mm, robot.data
+    assert all(sole_tilt(mm, d, f) == pytest.approx(a, abs=1e-3) for f in "RL")
+    meters = [ReferenceGroundMeter(mm, 20.0, settling_s=0.0), GroundMeter(mm, 20.0, settling_s=0.0)]
+    for m in meters:
+        loaded = m.update(d, 1)
+        assert loaded & 3 == 3            # both feet carry at least 20 N: both main boxes' tilts count
+        assert 0.0 < m.tilt_max < 1e-3 and 0.0 < m.stance_tilt_max <= m.tilt_max
+    assert meters[1].tilt_max == meters[0].tilt_max and meters[1].stance_tilt_max == meters[0].stance_tilt_max
+
+
+def test_a_vector_in_the_ground_frame_keeps_its_angle_to_the_normal() -> None:
+    """:func:`in_ground_frame`: the tilt form arctan2(hypot(x, y), z) of the result is the angle between the vector
+    and the normal, against arccos of their dot product (well conditioned away from 0 and pi; 1e-12 rad covers
+    round-off), for random unit vectors; the normal itself maps to +z."""
+    from humanoid_sim.engines.mujoco.contact import in_ground_frame
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        z, n = rng.normal(size=3), rng.normal(size=3)
+        z /= np.linalg.norm(z)
+        n /= np.linalg.norm(n)
+        out = in_ground_frame(z, n)
+        assert math.atan2(math.hypot(out[0], out[1]), out[2]) == pytest.approx(math.acos(float(z @ n)), abs=1e-12)
+        np.testing.assert_allclose(in_ground_frame(n, n), [0.0, 0.0, 1.0], atol=1e-15)

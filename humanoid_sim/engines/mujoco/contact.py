@@ -287,13 +287,32 @@ def bearing_tilt(mm: MujocoModel, data: mujoco.MjData, foot: str, main_load: flo
     when the main body carries less than ``f_min`` (N; ``main_load`` its normal force), its toe body's.  A foot
     on its toe with its heel lifted (a double support's toe-off) has a tilted main body on a flat toe box: it has
     not tipped.  With terrain boxes in the model the tilt is measured from the ground under the foot
-    (:func:`ground_normal`): a foot standing flat on a slope has not tipped either."""
-    box = 1 if main_load >= f_min else 0
+    (:func:`ground_tilt`): a foot standing flat on a slope has not tipped either."""
+    return ground_tilt(mm, data, foot, 1 if main_load >= f_min else 0)
+
+
+def ground_tilt(mm: MujocoModel, data: mujoco.MjData, foot: str, box: int = 1) -> float:
+    """Angle (rad) between a sole box's normal (the z axis of the foot's main body, ``box`` 1, or of its toe body,
+    0) and the ground under the foot (:func:`ground_normal`); :func:`sole_tilt` when the model has no terrain boxes
+    or that ground is level."""
     n = ground_normal(mm, data, foot) if mm.terrain_geoms else None
     if n is None or (n[0] == 0.0 and n[1] == 0.0):      # level ground: the vertical's tilt, as on the floor
         return sole_tilt(mm, data, foot, box)
-    z = data.xmat[mm.foot_bodies[foot][box]].reshape(3, 3)[:, 2]
-    return float(np.arctan2(np.linalg.norm(np.cross(z, n)), float(z @ n)))
+    z = in_ground_frame(data.xmat[mm.foot_bodies[foot][box]].reshape(3, 3)[:, 2], n)
+    return float(np.arctan2(np.hypot(z[0], z[1]), z[2]))
+
+
+def in_ground_frame(z: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """The world vector ``z`` (3,) in a frame whose third axis is the unit ground normal ``n`` (3,) (its first two
+    axes any orthonormal pair in the ground's plane): arctan2(hypot(x, y), z) of the result is the angle between
+    ``z`` and ``n``, the form :func:`sole_tilt` takes from the vertical."""
+    # the world axis least aligned with n makes a well-conditioned first in-plane axis
+    e = np.zeros(3)
+    e[int(np.argmin(np.abs(n)))] = 1.0
+    e1 = np.cross(n, e)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    return np.array([float(z @ e1), float(z @ e2), float(z @ n)])
 
 
 def ground_normal(mm: MujocoModel, data: mujoco.MjData, foot: str) -> np.ndarray:

@@ -7,7 +7,9 @@ timestep) a meter reads
   feet carry at least ``f_min`` of normal force (the fall tests' "loaded" feet);
 - the running maxima that ``summary.json`` reports: penetration; each sole box's slip while it supports
   (:class:`.contact.SlipMeter` on its :func:`.contact.sole_corners`, one meter per box); the tilt of a foot's main
-  body while its box supports (:func:`.contact.sole_tilt`), over both feet and over the stance foot alone;
+  body while its box supports, over both feet and over the stance foot alone: from the vertical
+  (:func:`.contact.sole_tilt`), or with terrain boxes in the model from the ground under the foot
+  (:func:`.contact.ground_tilt`: a foot standing flat on a slope has not tilted);
 - what the fall tests read: each foot's main-body tilt, the lower trunk's tilt and CoM height;
 - each foot's friction (:func:`sole_friction`: normal force, how much of their friction cones its contacts use,
   their slip speed), from which :class:`SlideMeter` finds the sliding events: a foot carrying at least ``f_min``
@@ -15,9 +17,9 @@ timestep) a meter reads
   first update that is not, with the distance it slid.
 
 The start-up settling is measured apart.  The robot starts at rest with its soles on z = 0 and no contact force;
-the soft contact then takes the weight in a transient that sets the run's deepest penetration and slides the feet
-(sim3_zmp: 2.47 mm at t = 4 ms and a 0.85 mm slip of the right sole at up to 0.35 m/s, against at most 0.96 mm of
-penetration over the rest of the walk).  The updates at t < :attr:`GroundMeter.settling_s`
+the soft contact then takes the weight in a transient that presses the soles several times deeper than they then
+stand, and may slide a foot (sim3_zmp: 1.04 mm within 10 ms against 0.14 mm standing after it; with the lead-in's
+trailing foot on its toe, 2.47 mm at t = 4 ms and a 0.85 mm slip of the right sole at up to 0.35 m/s).  The updates at t < :attr:`GroundMeter.settling_s`
 (:data:`SETTLING_TIME_CONSTANTS` time constants of the soles' contact, 0.05 s by default) are the settling window:
 its maxima and sliding are kept apart (:meth:`GroundMeter.report`), and the running maxima (``slip_max``,
 ``tilt_max``, ``stance_tilt_max``, ``penetration_max``: summary.json's ``foot_slip_max_m`` etc.) start again after
@@ -57,7 +59,16 @@ from humanoid_sim.engines.mujoco.compiled import (
     ground_update,
     slip_reduce,
 )
-from humanoid_sim.engines.mujoco.contact import SlipMeter, _tables, foot_loads, sole_corners, sole_tilt
+from humanoid_sim.engines.mujoco.contact import (
+    SlipMeter,
+    _tables,
+    foot_loads,
+    ground_normal,
+    ground_tilt,
+    in_ground_frame,
+    sole_corners,
+    sole_tilt,
+)
 from humanoid_sim.engines.mujoco.model import FEET, MujocoModel
 
 _NO_CORNERS = np.zeros((4, 3))
@@ -66,7 +77,8 @@ _NO_CORNERS = np.zeros((4, 3))
 SETTLING_TIME_CONSTANTS = 10.0
 """The settling window's length in time constants of the soles' contact (MuJoCo's ``solref[0]`` of the sole geoms,
 5 ms by default: 0.05 s).  The soft contact's response is critically damped (damping ratio 1): its transient
-(1 + t/tau) exp(-t/tau) is down to 5e-4 of its start after 10 tau.  Measured on sim3_zmp: the penetration peaks at
+(1 + t/tau) exp(-t/tau) is down to 5e-4 of its start after 10 tau.  Measured on sim3_zmp with the lead-in's
+trailing foot on its toe (``balance.flat_lead_in: false``): the penetration peaks at
 2.47 mm at 4 ms, is 0.21 mm at 30 ms and 0.154 mm at 50 ms against 0.153 mm over the next 10 ms; the right
 sole's settling slide (0.35 m/s at 2 ms) is over by 16 ms."""
 
@@ -364,6 +376,8 @@ class ReferenceGroundMeter(_Settling):
             main.update(f, on, sole_corners(mm, data, f, 1) if on else _NO_CORNERS)
             tilt = out[7 + i] = sole_tilt(mm, data, f)
             if on:
+                if mm.terrain_geoms:     # the maxima from the ground under the foot (the fall tests' from the vertical)
+                    tilt = ground_tilt(mm, data, f)
                 self.tilt_max = max(self.tilt_max, tilt)
                 if i == stance:
                     self.stance_tilt_max = max(self.stance_tilt_max, tilt)
@@ -438,6 +452,8 @@ class GroundMeter(_Settling):
         code = ground_update(con.geom, con.dist, con.dim, con.efc_address, con.friction, data.efc_force, data.efc_vel,
                              self._group, self._ids, xpos, gmat, xmat, xipos, self.f_min, self._limits, stance,
                              self._rows, self._flags, self._n, self.out)
+        if self.mm.terrain_geoms:
+            self._ground_relative(data)
         self._n += 1
         if self._n == self.chunk:
             self._reduce()
@@ -447,6 +463,17 @@ class GroundMeter(_Settling):
             f = self.out.tolist()
             self.sliding.update(t, ((f[11], f[12], f[13]), (f[14], f[15], f[16])))
         return code & ~FRICTION_SKIPPED
+
+    def _ground_relative(self, data: mujoco.MjData) -> None:
+        """The buffer row just written: each supporting main body's z axis in the frame of the ground under its
+        foot (:func:`.contact.in_ground_frame`), so that the reduction's tilt is :func:`.contact.ground_tilt`'s."""
+        row = self._n
+        for i, f in enumerate(FEET):
+            if self._flags[row, 1 + 2 * i]:
+                n = ground_normal(self.mm, data, f)
+                if not (n[0] == 0.0 and n[1] == 0.0):
+                    z = self._rows[row, 48 + 3 * i:51 + 3 * i]
+                    z[:] = in_ground_frame(z.copy(), n)
 
     # ------------------------------------------------------------------ the maxima
     @property
