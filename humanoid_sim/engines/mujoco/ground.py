@@ -19,8 +19,9 @@ timestep) a meter reads
 The start-up settling is measured apart.  The robot starts at rest with its soles on z = 0 and no contact force;
 the soft contact then takes the weight in a transient that presses the soles several times deeper than they then
 stand, and may slide a foot (sim3_zmp: 1.04 mm within 10 ms against 0.14 mm standing after it; with the lead-in's
-trailing foot on its toe, 2.47 mm at t = 4 ms and a 0.85 mm slip of the right sole at up to 0.35 m/s).  The updates at t < :attr:`GroundMeter.settling_s`
-(:data:`SETTLING_TIME_CONSTANTS` time constants of the soles' contact, 0.05 s by default) are the settling window:
+trailing foot on its toe, 2.47 mm at t = 4 ms and a 0.85 mm slip of the right sole at up to 0.35 m/s).  The
+updates at t < :attr:`GroundMeter.settling_s` (:data:`SETTLING_TIME_CONSTANTS` time constants of the soles'
+contact, 0.05 s by default) are the settling window:
 its maxima and sliding are kept apart (:meth:`GroundMeter.report`), and the running maxima (``slip_max``,
 ``tilt_max``, ``stance_tilt_max``, ``penetration_max``: summary.json's ``foot_slip_max_m`` etc.) start again after
 it, the slips from the soles' places at its end.  A run that ends within the window (a fall at once) has no walk
