@@ -314,4 +314,6 @@ def test_a_forward_push_is_survived_by_landing_early_on_mujoco(hm, tmp_path):
     assert rec.t_end < rec.nominal_end - 0.05, (rec.t_end, rec.nominal_end)
     assert res.sim_time < res.extra["nominal_end"]
     fell = _pushed_walk(hm, tmp_path, 27.5, 0, {"step_timing": False})
-    assert not fell.completed and "fall" in fell.reason, fell.reason
+    # the robot collapses after the pushed step (the hip sinking about 70 mm in 0.1 s): the run ends at the fall
+    # test (the hip below 0.5 m) or, when a spinning-out joint comes first, at the divergence check
+    assert not fell.completed and ("fall" in fell.reason or "diverged" in fell.reason), fell.reason

@@ -196,11 +196,14 @@ def test_a_foot_trailing_from_a_toe_on_a_bar_is_held_flat_and_the_walk_completes
     """With 0.02 m/s and 0.02 rad/s of noise on the sensed base twist, the foot whose toe stood bent on the bar
     trails next.  Held by that toe (the toe box on the bar's edge, 14 deg up, its motor limited to 30 N m), it
     tipped 18 ms into that double support and the walk fell.  Held flat on its heel box through the double
-    support (flat_trail), the walk completes, with the stance feet within 1 deg and 5 mm of slip."""
+    support (flat_trail), the walk completes, with the stance feet within 1 deg and 5 mm of slip.  The lead-in holds
+    its trailing foot by its toe here (flat_lead_in off), as when this was measured: with it held flat, its switch
+    to the toe at the lead-in's toe-off jolts the stance foot by 1.9 deg under this noise, before the bar, which
+    the maximum would read instead."""
     noise = {"base_linear_velocity_mps": 0.02, "base_angular_velocity_radps": 0.02, "seed": 1}
-    run = _bar_walk(tmp_path, TOE_BAR, sensing=noise)
+    run = _bar_walk(tmp_path, TOE_BAR, {"flat_lead_in": False}, sensing=noise)
     assert run.result.completed, run.result.reason
     s = run.summary
     assert s["stance_tilt_max_rad"] <= math.radians(1.0) and s["foot_slip_max_m"] <= 0.005, s
-    fell = _bar_walk(tmp_path, TOE_BAR, {"flat_trail": False}, sensing=noise)
+    fell = _bar_walk(tmp_path, TOE_BAR, {"flat_trail": False, "flat_lead_in": False}, sensing=noise)
     assert not fell.result.completed and "fall" in fell.result.reason, fell.result.reason
