@@ -93,6 +93,8 @@ class BalanceSettings:
         foothold_cut_margin_m: how far inside a cut the CoP stays, m.
         foothold_min_width_m: the least width a cut leaves on either side of it, m.
         foothold_toe_bent_rad: the toe-joint angle at anchoring beyond which a foot's toe box carries no load, rad.
+        foothold_settle_s: how long after a stance starts its turn from the anchor is not read for cuts (a landing
+            foot settling flat onto the ground), s.
         flat_trail: on real ground, hold a trailing foot whose last stance stood on a partial foothold (its toe bent
             on something, or its sole cut) flat on its heel box through the double support (no toe-off), instead
             of by its toe.
@@ -149,6 +151,7 @@ class BalanceSettings:
     foothold_cut_margin_m: float = 0.005
     foothold_min_width_m: float = 0.015
     foothold_toe_bent_rad: float = 0.05
+    foothold_settle_s: float = 0.01
     flat_trail: bool = True
     flat_lead_in: bool = True
 
@@ -167,7 +170,8 @@ class BalanceSettings:
                     raise InputError(f"BalanceSettings.{f.name} = {x!r}: expected true or false")
                 continue
             ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-            nonneg = f.name.startswith(("w_", "cop_", "step_")) or f.name in ("landing_depth_m", "heel_lift_rad")
+            nonneg = f.name.startswith(("w_", "cop_", "step_")) or f.name in ("landing_depth_m", "heel_lift_rad",
+                                                                               "foothold_settle_s")
             lo_ok = x >= 0 if nonneg else x > 0
             if f.name == "step_max_rate" and ok and x < 1.0:
                 raise InputError(f"BalanceSettings.step_max_rate = {x!r}: expected a finite number >= 1 (the "

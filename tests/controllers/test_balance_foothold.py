@@ -3,6 +3,7 @@ cuts against the geometry of a foot turning about an edge, the QP's cut boxes, a
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -72,25 +73,35 @@ def stance(hm):
     return SimpleNamespace(hm=hm, q=q, s=s, sole=sole, seen=seen, tracker=FootholdTracker(model, sole, s))
 
 
+T_READ = 1.0 + BalanceSettings().foothold_settle_s
+"""When the stances below, begun at t = 1 s, are read for cuts: at the end of their settling window."""
+
+
+def _read(st, tracker, anchors, w):
+    """The foothold after a stance's first update at t = 1 s and a second at :data:`T_READ`, the same reading."""
+    tracker.update(1.0, "R", anchors, st.q, None, w)
+    return tracker.update(T_READ, "R", anchors, st.q, None, w)
+
+
 def test_a_foot_rolling_about_an_inner_line_is_cut_there(stance):
     """Turned 2 deg about its sole x axis (its +y side up: the -y side found no ground) with its CoP at y = 10 mm:
     the supported part is y >= 10 + 5 mm; the toe box stays loaded."""
     st = stance
     anchors, w = st.seen((math.radians(2.0), 0.0, 0.0), 0.05, 0.01)
-    hold = st.tracker.update(1.0, "R", anchors, st.q, None, w)
+    hold = _read(st, st.tracker, anchors, w)
     assert hold.y_lo == pytest.approx(0.015, abs=1e-9) and hold.y_hi == math.inf
     assert hold.x_lo == -math.inf and hold.x_hi == math.inf and hold.toe_loaded and not hold.whole
-    assert st.tracker.history == [hold] and hold.cuts == [(1.0, "y", hold.y_lo)]
+    assert st.tracker.history == [hold] and hold.cuts == [(T_READ, "y", hold.y_lo)]
     # the same turn the other way: the +y side dropped, the support is below the CoP
     anchors, w = st.seen((-math.radians(2.0), 0.0, 0.0), 0.05, 0.01)
-    hold = FootholdTracker(st.hm.model, st.sole, st.s).update(1.0, "R", anchors, st.q, None, w)
+    hold = _read(st, FootholdTracker(st.hm.model, st.sole, st.s), anchors, w)
     assert hold.y_hi == pytest.approx(0.005, abs=1e-9) and hold.y_lo == -math.inf
 
 
 def test_a_foot_pitching_about_an_inner_line_is_cut_there(stance):
     """Turned 2 deg about its sole y axis, toe down (the toe side dropped), CoP at x = 60 mm: x <= 55 mm."""
     anchors, w = stance.seen((0.0, math.radians(2.0), 0.0), 0.06, 0.0)
-    hold = stance.tracker.update(1.0, "R", anchors, stance.q, None, w)
+    hold = _read(stance, stance.tracker, anchors, w)
     assert hold.x_hi == pytest.approx(0.055, abs=1e-9) and hold.x_lo == -math.inf
 
 
@@ -99,9 +110,29 @@ def test_a_foot_tipping_about_its_own_edge_or_barely_turning_is_not_cut(stance):
     would leave 5 mm, under the 15 mm minimum.  A turn of 1 deg is below the 1.5 deg that reveals a foothold."""
     st = stance
     anchors, w = st.seen((math.radians(2.0), 0.0, 0.0), 0.05, st.sole.width / 2 - 0.005)
-    assert st.tracker.update(1.0, "R", anchors, st.q, None, w).whole
+    assert _read(st, st.tracker, anchors, w).whole
     anchors, w = st.seen((math.radians(1.0), 0.0, 0.0), 0.05, 0.01)
-    assert FootholdTracker(st.hm.model, st.sole, st.s).update(1.0, "R", anchors, st.q, None, w).whole
+    assert _read(st, FootholdTracker(st.hm.model, st.sole, st.s), anchors, w).whole
+
+
+def test_a_landing_foot_settling_flat_is_not_cut(stance):
+    """The anchor is taken at touchdown; a foot that lands turned 2 deg settles flat onto the ground in its first
+    milliseconds, which is no partial foothold (on sim1_zmp after a push: 2.0 deg at the stance's first update,
+    1.3 deg 8 ms later).  Within ``foothold_settle_s`` of the stance's start its turn is not read; a turn that
+    stays beyond the limit after it is cut; with no settling window the first reading cuts."""
+    st = stance
+    turned, w = st.seen((math.radians(2.0), 0.0, 0.0), 0.05, 0.01)
+    # the foot turned 0.7 deg from the same anchor (``seen`` turns the anchor; its translation, which marks the
+    # stance, is the same, so the tracker keeps the stance and its start)
+    settled, _ = st.seen((math.radians(0.7), 0.0, 0.0), 0.05, 0.01)
+    assert st.tracker.update(1.0, "R", turned, st.q, None, w).whole      # within the window: not read
+    hold = st.tracker.update(T_READ, "R", settled, st.q, None, w)
+    assert hold.whole and hold is st.tracker.hold and hold.t_start == 1.0
+    hold = _read(st, FootholdTracker(st.hm.model, st.sole, st.s), turned, w)
+    assert not hold.whole and hold.cuts[0][0] == T_READ                 # still turned after the window: cut
+    eager = dataclasses.replace(st.s, foothold_settle_s=0.0)
+    hold = FootholdTracker(st.hm.model, st.sole, eager).update(1.0, "R", turned, st.q, None, w)
+    assert not hold.whole and hold.cuts[0][0] == 1.0
 
 
 def test_a_foot_anchored_with_its_toe_bent_carries_nothing_on_its_toe_box(stance):

@@ -66,6 +66,7 @@ def test_balance_settings_come_from_yaml_with_their_defaults() -> None:
     ({"hip_omaga": 10}, r"balance\.hip_omaga: unknown setting \(did you mean 'hip_omega'\?\)"),
     ({"friction_safety": 1.5}, r"balance\.friction_safety = 1\.5: expected a finite number > 0 and <= 1"),
     ({"time_shift": "yes"}, r"balance\.time_shift = 'yes': expected true or false"),
+    ({"foothold_settle_s": -0.01}, r"balance\.foothold_settle_s = -0\.01: expected a finite number >= 0"),
     ([1, 2], r"balance: expected a mapping of settings, got list"),
 ])
 def test_a_bad_balance_setting_names_the_field_and_the_value(section, match) -> None:

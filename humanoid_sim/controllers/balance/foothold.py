@@ -18,7 +18,9 @@ edge. Two rules, for each stance of a foot (touchdown to lift-off):
   foot turning about an edge of its support (the CoP there) is tipping, a balance problem that no cut mends. A
   pitch is read only with the CoP on the heel box: with the CoP on the toe box, the main body pitching is the heel
   rising about the toe joint (a robot rolling over its toes after a forward push), not the ground missing. Cuts
-  only shrink the support, until the foot lifts.
+  only shrink the support, until the foot lifts. A stance's turn is not read in its first ``foothold_settle_s``:
+  the anchor is taken at touchdown, and a foot that lands turned settles flat onto the ground within a few
+  milliseconds, which is no missing ground.
 
 Frames: the sole frame is the foot's main body frame (x forward, y left, z up), the sole plane at z = ``sole_z``;
 the toe box's x is measured from the toe joint. Units: SI.
@@ -47,6 +49,7 @@ class Foothold:
         toe_loaded: False when the foot was anchored with its toe bent.
         toe_angle: the toe joint's angle when the foot was anchored, rad.
         cuts: the cuts made, as (time s, axis "x" / "y", bound m) in order.
+        t_start: when the stance began (its first update), s.
     """
 
     foot: str
@@ -58,6 +61,7 @@ class Foothold:
     y_lo: float = -math.inf
     y_hi: float = math.inf
     cuts: list[tuple[float, str, float]] = field(default_factory=list)
+    t_start: float = -math.inf
 
     @property
     def whole(self) -> bool:
@@ -122,10 +126,10 @@ class FootholdTracker:
                 bent = abs(angle) > self.s.foothold_toe_bent_rad
                 if hold is not None:
                     self.last[hold.foot] = hold
-                hold = self.hold = Foothold(foot, key, toe_loaded=not bent, toe_angle=angle)
+                hold = self.hold = Foothold(foot, key, toe_loaded=not bent, toe_angle=angle, t_start=t)
                 if bent:
                     self.history.append(hold)
-        if foot_wrenches is None or hold is None:
+        if foot_wrenches is None or hold is None or t - hold.t_start < self.s.foothold_settle_s:
             return hold
         if data is None:
             data = self.data
