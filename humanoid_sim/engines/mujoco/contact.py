@@ -322,16 +322,23 @@ def ground_normal(mm: MujocoModel, data: mujoco.MjData, foot: str) -> np.ndarray
     soles = mm.sole_geoms[foot]
     terrain = mm.terrain_geoms
     up = np.array([0.0, 0.0, 1.0])
-    n = np.zeros(3)
-    f6 = np.zeros(6)
-    for i in range(data.ncon):
-        g1, g2 = (int(g) for g in data.contact.geom[i])
+    ids, others = [], []
+    for i, (g1, g2) in enumerate(data.contact.geom[:data.ncon].tolist()):
         other = g2 if g1 in soles else g1 if g2 in soles else -1
-        if other < 0:
-            continue
-        mujoco.mj_contactForce(mm.model, data, i, f6)
-        axis = data.geom_xmat[other].reshape(3, 3)[:, 2] if other in terrain else up
-        n += max(float(f6[0]), 0.0) * axis
+        if other >= 0:
+            ids.append(i)
+            others.append(other)
+    nx = ny = nz = 0.0
+    if ids:     # their normal forces gathered at once (mj_contactForce's, per contact)
+        normal = _contact_forces(mm.model, data, np.array(ids, dtype=np.intp))[0][:, 0].tolist()
+        axes = data.geom_xmat[:, 2::3]      # each geom's z axis
+        for f, other in zip(normal, others):
+            ax, ay, az = axes[other].tolist() if other in terrain else (0.0, 0.0, 1.0)
+            w = max(f, 0.0)
+            nx += w * ax
+            ny += w * ay
+            nz += w * az
+    n = np.array([nx, ny, nz])
     size = float(np.linalg.norm(n))
     return n / size if size > 0.0 else up
 
