@@ -363,7 +363,7 @@ class BalanceController:
                 toe_off = self._trail.toe_off(k)     # a lead-in held flat: from its toe-off's start
                 self._dsp_k, self._dsp_t0 = k, min(t, info.t_start) if toe_off is None else toe_off
             x = min(1.0, max(0.0, (t - self._dsp_t0) / min(info.duration, s.heel_lift_time_s)))
-            trail = "R" if phase.support_foot == "L" else "L"
+            trail = other_foot(phase.support_foot)
             # the lift is the main body's pitch about the toe body's y axis, -(toe joint angle): a toe that stood
             # bent on something (foothold.py) starts from its bend, not from a main body parallel to the toe box
             bend = self._footholds.toe_bend(trail) if self._footholds is not None else 0.0
