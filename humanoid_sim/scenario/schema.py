@@ -111,7 +111,8 @@ class GaitSettings:
     ``thesis``: chapter 3's hip (constant height, no lateral sway), unchanged.  ``zmp_preview``: the Body-17 CoM path
     planned by ZMP preview control (Kajita et al. 2003, ``humanoid_sim.references.zmp``): a standing ``lead_in_s``
     double
-    support first (the weight shift onto the first stance foot), ``horizon_s`` of preview, ``passes`` multibody
+    support first (the weight shift onto the first stance foot), ``horizon_s`` of preview (which sees a stop of
+    ``lead_out_s`` after the last phase: the ZMP moving to the midpoint of both soles; 0 = none), ``passes`` multibody
     corrections of the cart-table plan, planned on a ``sample_s`` grid; the ZMP reference moves between the sole
     centres with a ``transfer`` profile.  In this gait a double support lasts its planned duration and touchdown
     uses the inelastic impact law unless ``simulation.impact_law`` says otherwise, and the whole walk (the initial
@@ -128,6 +129,7 @@ class GaitSettings:
     hip_reference: str = "thesis"
     horizon_s: float = 1.6
     lead_in_s: float = 1.0
+    lead_out_s: float = 1.0
     passes: int = 2
     sample_s: float = 0.01
     transfer: str = "smoothstep"
@@ -346,6 +348,7 @@ def parse_scenario(doc: Any, source: str = "<dict>") -> Scenario:
     gait = flat_section(src, "gait", doc.get("gait"), GaitSettings, {
         "hip_reference": HIP_REFERENCES, "horizon_s": Num("a preview horizon in s", 0.05, 5.0),
         "lead_in_s": Num("a standing double support in s", 0.2, 5.0),
+        "lead_out_s": Num("a planned stop after the last phase in s", 0.0, 5.0),
         "passes": Num("a count of multibody corrections", choices=(0, 1, 2, 3, 4, 5)),
         "sample_s": Num("a planning step in s", 0.002, 0.05), "transfer": ZMP_TRANSFERS,
         "hip_lowering_m": Num("a hip lowering in m", 0.0, 0.15),

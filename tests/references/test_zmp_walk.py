@@ -77,6 +77,8 @@ def test_long_and_fast_scenarios_are_what_their_names_say():
     ({"hip_reference": "zmp_preview", "passes": 1.5}, "gait.passes: expected a count of multibody corrections"),
     ({"hip_reference": "zmp_preview", "lead": 1}, "gait"),
     ({"hip_reference": "zmp_preview", "hip_lowering_m": -0.01}, "gait.hip_lowering_m: expected a hip lowering in m"),
+    ({"hip_reference": "zmp_preview", "lead_out_s": -0.5},
+     "gait.lead_out_s: expected a planned stop after the last phase in s"),
     ({"hip_reference": "zmp_preview", "controller": "mpc"}, "gait.controller: expected one of balance, thesis"),
 ])
 def test_gait_section_bad_values_are_named(gait, message):

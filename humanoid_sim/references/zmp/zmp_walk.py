@@ -352,11 +352,14 @@ DSP_GRID_AT = DSP_TABLE_SIZE
 
 
 def plan_hip(hm: Any, traj: ZmpPreviewTrajectory, q0: np.ndarray, horizon_s: float = 1.6, passes: int = 2,
-             T: float = 0.01, transfer: str = "smoothstep") -> HipPlan:
+             T: float = 0.01, transfer: str = "smoothstep", lead_out_s: float = 1.0) -> HipPlan:
     """Plan Body 17's CoM for ``traj`` (whose feet and yaw are set) from rest at configuration q0.
 
     1. ZMP reference (:mod:`.zmp_reference`): from the initial whole-body CoM, over the first stance sole in the
-       lead-in, then the sole centres of chapter 3's footholds, moving across in each double support;
+       lead-in, then the sole centres of chapter 3's footholds, moving across in each double support, and after
+       the last phase a ``lead_out_s`` transfer to the midpoint of both soles (0: it stays on the last landed
+       sole's centre).  The walk ends with its last phase; the lead-out is the stop the preview sees coming, so
+       the last steps are planned toward standing on both feet instead of stopping dead over one;
     2. cart-table preview control (:class:`.preview.CartTablePreview`, table height = the initial whole-body CoM
        height) from rest;
     3. ``passes`` multibody corrections (:func:`.multibody.correct_hip`) with the whole-body posture of
@@ -375,8 +378,8 @@ def plan_hip(hm: Any, traj: ZmpPreviewTrajectory, q0: np.ndarray, horizon_s: flo
     inner = traj.inner
     com0 = whole_body_com(hm.model, np.asarray(q0, dtype=float)[None, :])[0]
     sole = SoleGeometry.from_model(hm)
-    times, ref = sample(intervals_from_trajectory(inner, sole, lead_in_s=traj.lead, start_xy=com0[:2]), T,
-                        transfer)
+    intervals = intervals_from_trajectory(inner, sole, lead_in_s=traj.lead, lead_out_s=lead_out_s, start_xy=com0[:2])
+    times, ref = sample(intervals, T, transfer)
     times = times + traj.lead                      # global time: 0 = the start of the lead-in
     n_need = int(math.ceil(traj.duration / T + 1e-9)) + 2   # the grid covers the end with one point to spare
     if len(times) < n_need:
@@ -441,7 +444,7 @@ def make_trajectory(hm: Any, scenario: Any, q0: np.ndarray) -> ReferenceTrajecto
 
     R0 = _quat_rotation(q0[3:7])
     traj = ZmpPreviewTrajectory(inner, g.lead_in_s, yaw_of(R0))
-    traj.set_hip_plan(plan_hip(hm, traj, q0, g.horizon_s, g.passes, g.sample_s, g.transfer))
+    traj.set_hip_plan(plan_hip(hm, traj, q0, g.horizon_s, g.passes, g.sample_s, g.transfer, g.lead_out_s))
     return traj
 
 
