@@ -75,6 +75,8 @@ class BalanceSettings:
             it and the time gained, the move that brings the plan's lateral DCM nearest the measured one (the rest,
             the plan waits).
         step_max_rate: the fastest the swing's path may run, times the plan's speed (>= 1).
+        step_return_m: how far each step takes back of the footholds' earlier moves (toward the planned footholds),
+            m: a walk knocked off its path walks back onto it (0: the rest of the walk keeps the moves).
         base_velocity: the base twist the controller acts on, on real ground (an engine without a weld model; on
             welds the observation's, exact): ``filtered`` (the sensed twist through a first-order low-pass filter of
             cut-off ``base_velocity_filter_hz``: humanoid_sim.controllers.balance.estimate) or ``measured`` (as
@@ -141,6 +143,7 @@ class BalanceSettings:
     step_timing_after: float = 0.0
     step_max_jump_s: float = 0.3
     step_max_rate: float = 2.5
+    step_return_m: float = 0.05
     base_velocity: str = "filtered"
     base_velocity_filter_hz: float = 30.0
     external_force: bool = True

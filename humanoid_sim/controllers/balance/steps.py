@@ -29,8 +29,10 @@ later); a plan that never moves on leaves a robot pushed forward ahead of it (th
 
 A moved foothold moves the rest of the walk with it: the plan's ZMP is shifted by the offset from the middle of the
 double support that follows the touchdown on, the DCM reference follows by the LIPM's backward recursion
-(:class:`.dcm.ZmpShift`), and every later swing lands the offsets so far from its planned foothold (a robot pushed
-forward walks on ahead of its plan instead of being pulled back to it; the path's shape is kept).
+(:class:`.dcm.ZmpShift`), and every later swing lands the offsets so far from its planned foothold, less what the
+steps since have taken back: each step adds to its own offset the earlier offsets' opposite, at most
+``step_return_m`` long, so that a walk knocked off its path walks back onto it over a few steps (the recovery step
+is never pulled back: the return starts with the step after it, and the DCM error's move comes on top).
 SI units, world frame.
 """
 
@@ -109,6 +111,7 @@ class StepAdjuster:
         self._width_vec = (0.0, 0.0)      # nominal landing + earlier offsets - stance toe point, world, m
         self._end = np.zeros(3)           # the nominal landing's toe point, world, m
         self._xi: tuple[float, float] | None = None   # the last call's measured DCM, world, m
+        self._ret = (0.0, 0.0)            # this step's return toward the planned footholds, world, m
         self._left = (0.0, 1.0)           # the heading frame's left axis, world
 
     def _start(self, k: int, t: float) -> None:
@@ -128,6 +131,11 @@ class StepAdjuster:
         stance = np.asarray(self.traj.toe_reference(k, t, "R" if swing == "L" else "L")[0], dtype=float)[:2]
         self._width_vec = (float(self._end[0] + self.total[0] - stance[0]),
                            float(self._end[1] + self.total[1] - stance[1]))
+        # the earlier offsets, taken back by at most step_return_m a step (the foothold moves toward the plan's)
+        tx, ty = float(self.total[0]), float(self.total[1])
+        n = math.hypot(tx, ty)
+        g = min(1.0, self.s.step_return_m / n) if n > 0.0 else 0.0
+        self._ret = (-g * tx, -g * ty)
 
     def update(self, k: int, t: float, xi_err: np.ndarray, omega: float, R_heading: np.ndarray,
                xi: tuple[float, float] | None = None) -> None:
@@ -159,7 +167,10 @@ class StepAdjuster:
         e = (fx * ex + fy * ey, fx * ey - fy * ex)
         s = self.s
         left = max(info.t_end - t_sw, 0.0)                     # the planned swing still to go, s
+        rf, rl = fx * self._ret[0] + fy * self._ret[1], fx * self._ret[1] - fy * self._ret[0]   # heading frame
         want = predicted_offset(e, omega, left / self.clock_rate, s.step_deadband_m)
+        want[0] += rf
+        want[1] += rl
         width = abs(fx * self._width_vec[1] - fy * self._width_vec[0])
         sign = 1.0 if info.swing_foot == "L" else -1.0
         hf, hl = clamp_offset(want, sign, width, s)
@@ -171,6 +182,8 @@ class StepAdjuster:
             if rate > self.clock_rate:
                 self.clock_rate = rate
                 want = predicted_offset(e, omega, left / rate, s.step_deadband_m)
+                want[0] += rf
+                want[1] += rl
                 hf, hl = clamp_offset(want, sign, width, s)
         sx, sy = fx * hf - fy * hl - self.d[0], fy * hf + fx * hl - self.d[1]
         n = math.hypot(sx, sy)
