@@ -45,6 +45,7 @@ import yaml
 
 from humanoid_sim.errors import InputError
 from humanoid_sim.interfaces.log import atomic_write_text
+from humanoid_sim.robot.phases import other_foot
 from humanoid_sim.sweep.spec import DottedPath, apply, scenario_hash
 from humanoid_sim.sweep.walk import walk_row
 
@@ -147,7 +148,7 @@ def swing_foot(phase_name: str) -> str:
     """
     if len(phase_name) != 6 or phase_name[0] not in "LR" or phase_name[1:] != "FFSSP":
         raise PushError(f"phase: {phase_name!r} is not a single support (expected LFFSSP or RFFSSP)")
-    return "R" if phase_name[0] == "L" else "L"
+    return other_foot(phase_name[0])
 
 
 def side_of(direction_deg: float, phase_name: str) -> str:

@@ -43,6 +43,7 @@ import math
 import numpy as np
 
 from humanoid_sim.controllers.balance.dcm import DcmFeedback, ZmpShift, ZmpWindow, capture_point
+from humanoid_sim.robot.phases import other_foot
 
 _NO_END = 1e9
 """A window's end, s: a moved foothold moves the rest of the walk with it."""
@@ -128,7 +129,7 @@ class StepAdjuster:
         # this swing takes before its own offset is the nominal landing plus those offsets, less the stance
         swing = ph[k].swing_foot
         self._end = np.array(self.traj.phase_targets(k).swing_toe_end, dtype=float)
-        stance = np.asarray(self.traj.toe_reference(k, t, "R" if swing == "L" else "L")[0], dtype=float)[:2]
+        stance = np.asarray(self.traj.toe_reference(k, t, other_foot(swing))[0], dtype=float)[:2]
         self._width_vec = (float(self._end[0] + self.total[0] - stance[0]),
                            float(self._end[1] + self.total[1] - stance[1]))
         # the earlier offsets, taken back by at most step_return_m a step (the foothold moves toward the plan's)

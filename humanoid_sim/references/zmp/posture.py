@@ -41,6 +41,7 @@ from scipy.optimize import brentq
 from humanoid_sim.references.chapter3.polynomials import smoothstep
 from humanoid_sim.references.initial import LEG_THETAS
 from humanoid_sim.robot.model import HumanoidModel
+from humanoid_sim.robot.phases import other_foot
 
 from .errors import GaitError
 from .preview import _finite_array
@@ -66,7 +67,7 @@ def thesis_free_toes(traj: Any, times: Sequence[float]) -> np.ndarray:
         if t < 0:
             continue
         ph = traj.phases[traj.phase_at(float(t))]
-        foot = ph.swing_foot if ph.is_ssp else ("L" if ph.landed_foot == "R" else "R")
+        foot = ph.swing_foot if ph.is_ssp else other_foot(ph.landed_foot)
         out[k, FEET.index(foot)] = True
     return out
 

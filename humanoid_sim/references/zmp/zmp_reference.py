@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from humanoid_sim.references.chapter3.polynomials import smoothstep
+from humanoid_sim.robot.phases import other_foot
 from humanoid_sim.robot.sole import SoleGeometry
 
 from .errors import GaitError, sample_time
@@ -175,7 +176,7 @@ def intervals_from_trajectory(traj, sole: SoleGeometry, lead_in_s: float = 1.0, 
 
     out: list[SupportInterval] = []
     first = traj.phases[0]
-    stance0 = "L" if first.swing_foot == "R" else "R"
+    stance0 = other_foot(first.swing_foot)
     if lead_in_s > 0:
         if start_xy is None:
             mid = 0.5 * (np.array(centre(0, "R")) + np.array(centre(0, "L")))
@@ -188,11 +189,11 @@ def intervals_from_trajectory(traj, sole: SoleGeometry, lead_in_s: float = 1.0, 
         out.append(SupportInterval(-0.5 * lead_in_s, first.t_start, tuple(mid), c0))
     for ph in traj.phases:
         if ph.is_ssp:
-            stance = "L" if ph.swing_foot == "R" else "R"
+            stance = other_foot(ph.swing_foot)
             out.append(SupportInterval(ph.t_start, ph.t_end, centre(ph.index, stance), trail(ph.index, stance)))
         else:
             lead = ph.landed_foot
-            back = "L" if lead == "R" else "R"
+            back = other_foot(lead)
             out.append(SupportInterval(ph.t_start, ph.t_end, trail(ph.index, back), centre(ph.index, lead)))
     if lead_out_s > 0:
         last = traj.phases[-1]
