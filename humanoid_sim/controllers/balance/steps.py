@@ -64,11 +64,13 @@ def _shrink(x: float, band: float) -> float:
     return x - band if x > band else x + band if x < -band else 0.0
 
 
-def predicted_offset(err: np.ndarray, omega: float, t_remaining: float, deadband: float) -> np.ndarray:
+def predicted_offset(err: np.ndarray, omega: float, t_remaining: float, deadband: float,
+                     plus: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
     """The foothold offset (2,) m for a DCM error ``err`` (2,) m, in any horizontal frame: the error grown over
-    ``t_remaining`` s by e^{omega T}, each component shrunk toward zero by ``deadband`` m."""
+    ``t_remaining`` s by e^{omega T}, each component shrunk toward zero by ``deadband`` m, plus ``plus`` (m, the
+    same frame: a move wanted whatever the error, such as the return toward the planned footholds)."""
     g = math.exp(omega * max(t_remaining, 0.0))
-    return np.array([_shrink(float(err[0]) * g, deadband), _shrink(float(err[1]) * g, deadband)])
+    return np.array([_shrink(float(err[0]) * g, deadband) + plus[0], _shrink(float(err[1]) * g, deadband) + plus[1]])
 
 
 def clamp_offset(d_heading: np.ndarray, outward_sign: float, width: float, s) -> np.ndarray:
@@ -168,10 +170,8 @@ class StepAdjuster:
         e = (fx * ex + fy * ey, fx * ey - fy * ex)
         s = self.s
         left = max(info.t_end - t_sw, 0.0)                     # the planned swing still to go, s
-        rf, rl = fx * self._ret[0] + fy * self._ret[1], fx * self._ret[1] - fy * self._ret[0]   # heading frame
-        want = predicted_offset(e, omega, left / self.clock_rate, s.step_deadband_m)
-        want[0] += rf
-        want[1] += rl
+        ret = (fx * self._ret[0] + fy * self._ret[1], fx * self._ret[1] - fy * self._ret[0])   # heading frame
+        want = predicted_offset(e, omega, left / self.clock_rate, s.step_deadband_m, ret)
         width = abs(fx * self._width_vec[1] - fy * self._width_vec[0])
         sign = 1.0 if info.swing_foot == "L" else -1.0
         hf, hl = clamp_offset(want, sign, width, s)
@@ -182,9 +182,7 @@ class StepAdjuster:
             rate = self._timing(e, (hf, hl), omega, left, speed, s)
             if rate > self.clock_rate:
                 self.clock_rate = rate
-                want = predicted_offset(e, omega, left / rate, s.step_deadband_m)
-                want[0] += rf
-                want[1] += rl
+                want = predicted_offset(e, omega, left / rate, s.step_deadband_m, ret)
                 hf, hl = clamp_offset(want, sign, width, s)
         sx, sy = fx * hf - fy * hl - self.d[0], fy * hf + fx * hl - self.d[1]
         n = math.hypot(sx, sy)
