@@ -199,11 +199,8 @@ def test_each_step_takes_back_part_of_the_earlier_offsets():
             st.update(0, 0.1 + 0.005 * i, np.zeros(2), OM, np.eye(3))
         np.testing.assert_allclose(st.d, expected, rtol=0, atol=1e-15)     # sums of a few floats
         landing = st.landing(0)
-        if ret == 0.0:
-            assert landing is not None and np.allclose(landing[:2], [0.33, 0.08], rtol=0, atol=1e-15)
-        else:
-            assert landing is not None and np.allclose(landing[:2], np.array([0.33, 0.08]) + expected, rtol=0,
-                                                       atol=1e-15)
+        assert landing is not None and np.allclose(landing[:2], np.array([0.33, 0.08]) + expected, rtol=0,
+                                                   atol=1e-15)
 
 
 def test_step_timing_leaves_small_backward_and_disabled_cases_alone():

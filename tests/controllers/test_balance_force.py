@@ -139,7 +139,7 @@ def _incline_run(tmp_path, direction: str, until: float | None, balance: dict | 
     if balance:
         doc["balance"] = balance
     if gait:
-        doc["gait"] = {"hip_reference": "zmp_preview", **gait}
+        doc["gait"] = gait      # laid over sim3_zmp's gait section, key by key
     f = tmp_path / f"incline_{direction}.yaml"
     f.write_text(yaml.safe_dump(doc))
     return run_walk(f, "mujoco", until=until)
